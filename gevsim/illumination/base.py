@@ -1,0 +1,198 @@
+"""Common interface of lamp waveforms and the piecewise-linear machinery.
+
+A waveform ``w(t)`` (``t`` in seconds) multiplies a light group's mean
+radiance, so every waveform is normalised to a mean of exactly 1 over one
+period (or over its table span when it is not periodic).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Waveform"]
+
+
+class FieldError(ValueError):
+    """A bad dataclass field; ``field`` names it so that a factory can report the key."""
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        super().__init__(message)
+
+
+def real(obj: Any, name: str, *, low: float | None = None, high: float | None = None,
+         low_open: bool = False, high_open: bool = False) -> float:
+    """Coerce field ``name`` of ``obj`` to a finite float in a range and store it back."""
+    value = getattr(obj, name)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise FieldError(name, f"{name}={value!r} must be a real number")
+    x = float(value)
+    if not math.isfinite(x):
+        raise FieldError(name, f"{name}={value!r} must be finite")
+    if low is not None and (x < low or (low_open and x == low)):
+        raise FieldError(name, f"{name}={value!r} must be {'>' if low_open else '>='} {low:g}")
+    if high is not None and (x > high or (high_open and x == high)):
+        raise FieldError(name, f"{name}={value!r} must be {'<' if high_open else '<='} {high:g}")
+    object.__setattr__(obj, name, x)
+    return x
+
+
+def as_time(t: Any) -> np.ndarray:
+    """Return ``t`` as a float64 array (seconds)."""
+    return np.asarray(t, dtype=np.float64)
+
+
+class Waveform(ABC):
+    """A lamp's relative light output as a function of time, mean 1.
+
+    Subclasses implement ``__call__``, ``period_s`` and ``cumulative``;
+    ``average`` then integrates piecewise-constant light exactly.
+    """
+
+    @abstractmethod
+    def __call__(self, t: Any) -> np.ndarray:
+        """Relative light output at times ``t`` (s); float64, same shape, >= 0."""
+
+    @property
+    @abstractmethod
+    def period_s(self) -> float | None:
+        """Period in seconds, or ``None`` when the waveform is not periodic."""
+
+    @abstractmethod
+    def cumulative(self, t: Any) -> np.ndarray:
+        """Exact integral of the waveform from 0 to ``t`` (s), vectorised."""
+
+    def integral(self, t_start: Any, t_end: Any) -> np.ndarray:
+        """Exact integral of the waveform over ``[t_start, t_end]`` (broadcast)."""
+        a, b = np.broadcast_arrays(as_time(t_start), as_time(t_end))
+        return self.cumulative(b) - self.cumulative(a)
+
+    def average(self, t_start: Any, t_end: Any) -> np.ndarray:
+        """Mean of the waveform over each interval ``[t_start, t_end]``.
+
+        Equals ``(C(t_end) - C(t_start)) / (t_end - t_start)``; where the
+        interval is empty the value ``w(t_start)`` is returned.
+        """
+        a, b = np.broadcast_arrays(as_time(t_start), as_time(t_end))
+        d = b - a
+        empty = d == 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            avg = self.integral(a, b) / np.where(empty, 1.0, d)
+        if np.any(empty):
+            avg = np.where(empty, self(a), avg)
+        return np.asarray(avg, dtype=np.float64)
+
+    def reference_span(self) -> tuple[float, float]:
+        """Interval over which the mean is 1 and flicker metrics are taken."""
+        p = self.period_s
+        return (0.0, 1.0) if p is None else (0.0, p)
+
+    @property
+    def mean_value(self) -> float:
+        """Mean over :meth:`reference_span` (1 up to rounding), computed."""
+        a, b = self.reference_span()
+        return float(self.integral(a, b)) / (b - a)
+
+    def value_range(self) -> tuple[float, float] | None:
+        """Exact ``(min, max)`` over all time where cheap, else ``None``."""
+        return None
+
+    def constant(self) -> Waveform:
+        """The DC waveform of the same mean, for counterfactual no-flicker runs."""
+        from .basic import DC
+
+        return DC()
+
+
+class PeriodicWaveform(Waveform):
+    """A periodic waveform defined by its integral over one period.
+
+    Subclasses give ``period_s``, ``_shift_s`` (the time of phase 0) and
+    ``_cum_one(r)``, the integral from phase 0 to phase ``r`` in ``[0, P]``.
+    Integrals are split into whole periods plus a remainder, so averages over
+    short steps stay accurate at large ``t``.
+    """
+
+    _shift_s: float = 0.0
+
+    @abstractmethod
+    def _cum_one(self, r: np.ndarray) -> np.ndarray:
+        """Integral from phase 0 to ``r`` in ``[0, period_s]``."""
+
+    def _split(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = self.period_s
+        u = t - self._shift_s
+        n = np.floor(u / p)
+        r = np.clip(u - n * p, 0.0, p)
+        return n, r
+
+    def _phase(self, t: np.ndarray) -> np.ndarray:
+        """Time since the last phase 0, in ``[0, period_s)``."""
+        r = self._split(t)[1]
+        return np.where(r >= self.period_s, 0.0, r)
+
+    def integral(self, t_start: Any, t_end: Any) -> np.ndarray:
+        a, b = np.broadcast_arrays(as_time(t_start), as_time(t_end))
+        na, ra = self._split(a)
+        nb, rb = self._split(b)
+        whole = float(self._cum_one(np.float64(self.period_s)))
+        return (nb - na) * whole + (self._cum_one(rb) - self._cum_one(ra))
+
+    def cumulative(self, t: Any) -> np.ndarray:
+        t = as_time(t)
+        return self.integral(np.zeros_like(t), t)
+
+
+class PiecewiseLinear:
+    """Piecewise-linear function on non-decreasing knots ``x`` with values ``y``.
+
+    Repeated knots encode jumps (the value at a repeated knot is the right
+    limit). Outside ``[x[0], x[-1]]`` the end values are held.
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray):
+        self.x = np.asarray(x, dtype=np.float64)
+        self.y = np.asarray(y, dtype=np.float64)
+        dx = np.diff(self.x)
+        self._dx = dx
+        self._slope = np.divide(np.diff(self.y), dx, out=np.zeros_like(dx), where=dx > 0)
+        self._area = np.concatenate([[0.0], np.cumsum(0.5 * dx * (self.y[:-1] + self.y[1:]))])
+
+    @property
+    def total(self) -> float:
+        """Integral over ``[x[0], x[-1]]``."""
+        return float(self._area[-1])
+
+    def _locate(self, u: np.ndarray) -> np.ndarray:
+        i = np.searchsorted(self.x, u, side="right") - 1
+        return np.clip(i, 0, len(self.x) - 2)
+
+    def __call__(self, u: Any) -> np.ndarray:
+        u = as_time(u)
+        i = self._locate(u)
+        v = self.y[i] + self._slope[i] * (np.clip(u, self.x[0], self.x[-1]) - self.x[i])
+        return np.where(u >= self.x[-1], self.y[-1], v)
+
+    def value_range(self) -> tuple[float, float]:
+        """``(min, max)`` over the knot span; jumps count both limits."""
+        live = self._dx > 0
+        ends = np.concatenate([self.y[:-1][live], self.y[1:][live]])
+        if ends.size == 0:
+            ends = self.y
+        return (float(ends.min()), float(ends.max()))
+
+    def integral_from_start(self, u: Any) -> np.ndarray:
+        """Integral from ``x[0]`` to ``u``, end values held outside the knots."""
+        u = as_time(u)
+        uc = np.clip(u, self.x[0], self.x[-1])
+        i = self._locate(uc)
+        h = uc - self.x[i]
+        inside = self._area[i] + h * (self.y[i] + 0.5 * self._slope[i] * h)
+        inside = np.where(uc >= self.x[-1], self._area[-1], inside)
+        before = np.minimum(u - self.x[0], 0.0) * self.y[0]
+        after = np.maximum(u - self.x[-1], 0.0) * self.y[-1]
+        return inside + before + after

@@ -1,0 +1,86 @@
+"""Mixing light-group basis images with lamp waveforms.
+
+Light transport is linear in emitter radiance, so the irradiance at time ``t``
+is ``E(t) = sum_k w_k(t) B_k`` over light groups ``k`` (DESIGN.md, point 1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .base import Waveform
+
+__all__ = ["mix", "weights_at"]
+
+
+def mix(basis: Any, weights: Any) -> np.ndarray:
+    """Weighted sum of basis images, ``sum_k weights[..., k] * basis[k]``.
+
+    Parameters
+    ----------
+    basis : array, shape (K, H, W) or (K, H, W, C)
+        One image per light group (e.g. irradiance at unit waveform).
+    weights : array, shape (K,) or (T, K)
+        Waveform values per light group, optionally per time step.
+
+    Returns
+    -------
+    ndarray, shape (H, W[, C]) or (T, H, W[, C])
+        float32 if ``basis`` is float32 (halves memory; sums accumulate in
+        float32 through BLAS), else float64.
+    """
+    b = np.asarray(basis)
+    if b.ndim not in (3, 4):
+        raise ValueError(f"basis must have shape (K, H, W) or (K, H, W, C), got {b.shape}")
+    dtype = np.float32 if b.dtype == np.float32 else np.float64
+    b = b.astype(dtype, copy=False)
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim not in (1, 2):
+        raise ValueError(f"weights must have shape (K,) or (T, K), got {w.shape}")
+    if w.shape[-1] != b.shape[0]:
+        raise ValueError(f"weights have {w.shape[-1]} light groups (shape {w.shape}) "
+                         f"but basis has {b.shape[0]} (shape {b.shape})")
+    if not np.all(np.isfinite(w)):
+        raise ValueError(f"weights must be finite, got {w!r}")
+    return np.tensordot(w.astype(dtype), b, axes=([-1], [0]))
+
+
+def weights_at(waveforms: Sequence[Waveform], t_s: Any, *, average_over_s: Any = None) -> np.ndarray:
+    """Waveform values per time and light group, shape (T, K).
+
+    Parameters
+    ----------
+    waveforms : sequence of Waveform
+        One per light group (K of them).
+    t_s : float or 1-D array, shape (T,)
+        Times in seconds.
+    average_over_s : float or array of shape (T,), optional
+        If given (> 0), return the exact mean of each waveform over
+        ``[t_s, t_s + average_over_s)`` instead of its value at ``t_s``.
+    """
+    waveforms = list(waveforms)
+    for k, wf in enumerate(waveforms):
+        if not isinstance(wf, Waveform):
+            raise TypeError(f"waveforms[{k}]={wf!r} is not a Waveform")
+    t = np.asarray(t_s, dtype=np.float64)
+    if t.ndim > 1:
+        raise ValueError(f"t_s must be a scalar or 1-D, got shape {t.shape}")
+    t = np.atleast_1d(t)
+    if not np.all(np.isfinite(t)):
+        raise ValueError(f"t_s must be finite, got {t_s!r}")
+    if average_over_s is None:
+        cols = [wf(t) for wf in waveforms]
+    else:
+        d = np.asarray(average_over_s, dtype=np.float64)
+        if d.ndim > 1 or (d.ndim == 1 and d.shape != t.shape):
+            raise ValueError(f"average_over_s must be a scalar or shape {t.shape}, got shape {d.shape}")
+        if not np.all(np.isfinite(d)) or np.any(d <= 0):
+            raise ValueError(f"average_over_s={average_over_s!r} must be finite and > 0")
+        end = t + d
+        cols = [wf.average(t, end) for wf in waveforms]
+    if not cols:
+        return np.zeros((t.size, 0))
+    return np.stack(cols, axis=-1)

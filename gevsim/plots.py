@@ -1,0 +1,80 @@
+"""PNG figures for people: irradiance contact sheets and lamp waveforms.
+
+Needs the ``plot`` extra (matplotlib); uses the non-interactive Agg backend.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from gevsim.io import atomic_path
+
+
+def _pyplot():
+    try:
+        import matplotlib
+    except ImportError as exc:  # pragma: no cover - depends on the install
+        raise ImportError("plots need matplotlib: pip install 'gevsim[plot]'") from exc
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def tone_map(irradiance: np.ndarray, *, low=None, high=None) -> np.ndarray:
+    """Log tone mapping to [0, 1]: ln(E) between the 1st and 99.9th percentiles
+    of the whole sequence (or ``low``/``high``), so frames share one scale."""
+    e = np.maximum(np.asarray(irradiance, np.float64), 1e-12)
+    log_e = np.log(e)
+    lo = np.percentile(log_e, 1) if low is None else np.log(low)
+    hi = np.percentile(log_e, 99.9) if high is None else np.log(high)
+    return np.clip((log_e - lo) / max(hi - lo, 1e-9), 0.0, 1.0)
+
+
+def contact_sheet(frames: np.ndarray, times_s, path: str | os.PathLike, *, title: str = "", max_frames: int = 12):
+    """Grid of up to ``max_frames`` tone-mapped frames labelled with time and mean illuminance."""
+    plt = _pyplot()
+    from gevsim.optics import illuminance_lux, luminance
+
+    idx = np.unique(np.linspace(0, len(frames) - 1, min(max_frames, len(frames))).round().astype(int))
+    shown = tone_map(frames)
+    cols = min(4, len(idx))
+    rows = int(np.ceil(len(idx) / cols))
+    h, w = frames.shape[1:3]
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows * h / w + 0.6), squeeze=False)
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, i in zip(axes.ravel(), idx):
+        img = shown[i] if shown.shape[-1] == 3 else shown[i, ..., 0]
+        ax.imshow(img, cmap=None if img.ndim == 3 else "gray", vmin=0, vmax=1)
+        y = luminance(frames[i] if frames.shape[-1] == 3 else frames[i, ..., 0])
+        ax.set_title(f"t = {1e3 * times_s[i]:.2f} ms, {float(illuminance_lux(y).mean()):.1f} lx", fontsize=9)
+    fig.suptitle(f"{title}: focal-plane irradiance (log scale)", fontsize=11)
+    fig.tight_layout()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)
+
+
+def waveform_plot(basis, times_s, mean_lux, path: str | os.PathLike, *, title: str = ""):
+    """Lamp waveforms (top) and mean focal-plane illuminance of the frames (bottom)."""
+    plt = _pyplot()
+    t_end = max(float(times_s[-1]) if len(times_s) else 0.0, 1e-6)
+    t = np.linspace(0.0, t_end, 4000)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    for name, wf in zip(basis.groups, basis.waveforms):
+        top.plot(1e3 * t, wf(t), label=f"{name}: {type(wf).__name__}")
+    top.set_ylabel("relative output w(t)")
+    top.legend(loc="upper right", fontsize=8)
+    top.grid(alpha=0.3)
+    bottom.plot(1e3 * np.asarray(times_s), mean_lux, "o-", ms=3)
+    bottom.set_xlabel("time (ms)")
+    bottom.set_ylabel("mean focal-plane illuminance (lx)")
+    bottom.grid(alpha=0.3)
+    fig.suptitle(f"{title}: lamp waveforms and mean irradiance")
+    fig.tight_layout()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)

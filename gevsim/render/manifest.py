@@ -1,0 +1,407 @@
+"""Scene manifests: the TOML file that names a scene's light groups, their
+waveforms and emission, the camera trajectory, moving objects, resolution,
+spp and duration.
+
+A manifest points at a scene *builder*, a Python file with a
+``build(options) -> dict`` function returning Mitsuba shapes and emitters
+(geometry and materials only; gevsim adds the camera, film and integrator).
+``[scene] extends = "other.toml"`` starts from another manifest and overrides
+its tables key by key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.illumination import Waveform, from_spec as waveform_from_spec
+
+SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
+_PACKAGED_SCENES = Path(__file__).resolve().parents[1] / "_scenes"
+
+TABLES = ("scene", "render", "sequence", "camera", "motion", "light_groups", "optics")
+SCENE_KEYS = ("name", "description", "builder", "options", "extends")
+RENDER_KEYS = ("width", "height", "spp", "seed", "flavour", "max_depth", "max_px_per_pose")
+SEQUENCE_KEYS = ("duration_s",)
+CAMERA_KEYS = ("fov_deg", "keyframes")
+CAMERA_KEY_KEYS = ("t_s", "origin", "target", "up")
+MOTION_KEYS = ("object", "axis", "keyframes")
+MOTION_KEY_KEYS = ("t_s", "translate_m", "rotate_deg")
+GROUP_KEYS = ("emitters", "waveform", "spectrum", "radiance_w_m2_sr", "luminance_cd_m2", "illuminance_lux", "at_m")
+
+
+@dataclass(frozen=True)
+class Emission:
+    """How bright a light group's emitters are (see :func:`gevsim.render.scene.emitter_rgb`).
+
+    Exactly one of ``radiance_w_m2_sr`` (RGB, photopic-equivalent radiance),
+    ``luminance_cd_m2`` (with a lamp ``spectrum``) or ``illuminance_lux`` at
+    ``at_m`` metres on the emitter's axis (with a ``spectrum``).
+    """
+
+    spectrum: str | None = None
+    radiance_w_m2_sr: tuple[float, float, float] | None = None
+    luminance_cd_m2: float | None = None
+    illuminance_lux: float | None = None
+    at_m: float | None = None
+
+
+@dataclass(frozen=True)
+class LightGroup:
+    name: str
+    emitters: tuple[str, ...]
+    waveform: Waveform
+    emission: Emission
+
+
+@dataclass(frozen=True)
+class CameraKey:
+    t_s: float
+    origin: tuple[float, float, float]
+    target: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+
+
+@dataclass(frozen=True)
+class ObjectKey:
+    t_s: float
+    translate_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotate_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Rigid motion of scene objects (moving together): translation, and rotation about
+    ``axis`` through the centre of their joint bounding box. ``name`` identifies it."""
+
+    objects: tuple[str, ...]
+    keyframes: tuple[ObjectKey, ...]
+    axis: tuple[float, float, float] = (0.0, 1.0, 0.0)
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    width: int = 346
+    height: int = 260
+    spp: int = 16
+    seed: int = 0
+    flavour: str = "rgb"
+    max_depth: int = 5
+    max_px_per_pose: float = 1.0
+
+
+@dataclass(frozen=True)
+class SceneManifest:
+    """A validated scene manifest."""
+
+    name: str
+    source: str
+    builder: Path
+    options: dict
+    render: RenderSettings
+    duration_s: float
+    fov_deg: float
+    camera: tuple[CameraKey, ...]
+    motion: tuple[Motion, ...]
+    light_groups: tuple[LightGroup, ...]
+    optics: dict = field(default_factory=dict)
+    description: str = ""
+    raw: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def group_names(self) -> tuple[str, ...]:
+        return tuple(g.name for g in self.light_groups)
+
+    @property
+    def moving_objects(self) -> tuple[str, ...]:
+        return tuple(o for m in self.motion for o in m.objects)
+
+    @property
+    def moving(self) -> bool:
+        return len(self.camera) > 1 or bool(self.motion)
+
+
+def builtin_scenes() -> dict[str, Path]:
+    """Names of the built-in scenes and their manifest paths."""
+    found = {}
+    for folder in (_PACKAGED_SCENES, SCENES_DIR):
+        if folder.is_dir():
+            found.update({p.stem: p for p in sorted(folder.glob("*.toml"))})
+    return found
+
+
+def resolve(scene: str | Path) -> Path:
+    """A manifest path from a path or the name of a built-in scene."""
+    path = Path(scene)
+    if path.suffix == ".toml" or path.exists():
+        if not path.is_file():
+            raise ConfigError("no such scene manifest", source=str(path))
+        return path
+    scenes = builtin_scenes()
+    if str(scene) not in scenes:
+        raise ConfigError(
+            f"no scene manifest {str(scene)!r}{suggest(str(scene), scenes)}; built-in scenes: {', '.join(scenes)}"
+        )
+    return scenes[str(scene)]
+
+
+def _read_toml(path: Path, chain: tuple[Path, ...] = ()) -> dict:
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError("no such scene manifest", source=str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"malformed TOML: {exc}", source=str(path)) from None
+    base = data.get("scene", {}).get("extends")
+    if base is None:
+        return data
+    parent = (path.parent / base).resolve()
+    if parent in chain:
+        raise ConfigError(f"'extends' loops back to {parent}", source=str(path), key="scene.extends")
+    merged = _read_toml(parent, chain + (parent,))
+    for table, value in data.items():
+        if isinstance(value, dict) and isinstance(merged.get(table), dict):
+            merged[table] = {**merged[table], **value}
+        else:
+            merged[table] = value
+    # Relative paths in the base (builder) stay relative to the base file.
+    if "builder" not in data.get("scene", {}) and "builder" in merged.get("scene", {}):
+        merged["scene"]["builder"] = str((parent.parent / merged["scene"]["builder"]).resolve())
+    merged["scene"].pop("extends", None)
+    return merged
+
+
+class _Reader:
+    """Typed access to a TOML table with errors that name file and key."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, key: str, message: str):
+        raise ConfigError(message, source=self.source, key=key)
+
+    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, integer=False):
+        if key not in table:
+            if default is None:
+                self.fail(f"{where}.{key}", "missing")
+            return default
+        value = table[key]
+        kind = int if integer else (int, float)
+        if isinstance(value, bool) or not isinstance(value, kind) or not math.isfinite(value):
+            self.fail(f"{where}.{key}", f"expected a finite {'integer' if integer else 'number'}, got {value!r}")
+        if positive and value <= 0:
+            self.fail(f"{where}.{key}", f"must be > 0, got {value!r}")
+        if minimum is not None and value < minimum:
+            self.fail(f"{where}.{key}", f"must be >= {minimum}, got {value!r}")
+        return value
+
+    def vector(self, table: dict, key: str, where: str, default=None, *, n=3, nonnegative=False):
+        if key not in table:
+            if default is None:
+                self.fail(f"{where}.{key}", "missing")
+            return default
+        value = table[key]
+        if (
+            not isinstance(value, list)
+            or len(value) != n
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+        ):
+            self.fail(f"{where}.{key}", f"expected {n} finite numbers, got {value!r}")
+        if nonnegative and any(v < 0 for v in value):
+            self.fail(f"{where}.{key}", f"must not be negative, got {value!r}")
+        return tuple(float(v) for v in value)
+
+    def table(self, data: dict, key: str, where: str = "") -> dict:
+        value = data.get(key, {})
+        if not isinstance(value, dict):
+            self.fail(f"{where}{key}", f"expected a table, got {value!r}")
+        return value
+
+
+def load(scene: str | Path) -> SceneManifest:
+    """Load and validate a scene manifest (a path or a built-in scene name)."""
+    path = resolve(scene)
+    raw = _read_toml(path, (path.resolve(),))
+    r = _Reader(str(path))
+    check_keys(raw, TABLES, source=r.source, where="")
+
+    sc = r.table(raw, "scene")
+    check_keys(sc, SCENE_KEYS, source=r.source, where="scene")
+    if "builder" not in sc:
+        r.fail("scene.builder", "missing: name the Python file with the scene's build(options) function")
+    builder = (path.parent / sc["builder"]).resolve()
+    if not builder.is_file():
+        r.fail("scene.builder", f"no such file {builder}")
+    options = sc.get("options", {})
+    if not isinstance(options, dict):
+        r.fail("scene.options", f"expected a table, got {options!r}")
+
+    rt = r.table(raw, "render")
+    check_keys(rt, RENDER_KEYS, source=r.source, where="render")
+    d = RenderSettings()
+    render = RenderSettings(
+        width=r.number(rt, "width", "render", d.width, positive=True, integer=True),
+        height=r.number(rt, "height", "render", d.height, positive=True, integer=True),
+        spp=r.number(rt, "spp", "render", d.spp, positive=True, integer=True),
+        seed=r.number(rt, "seed", "render", d.seed, minimum=0, integer=True),
+        flavour=str(rt.get("flavour", d.flavour)),
+        max_depth=r.number(rt, "max_depth", "render", d.max_depth, positive=True, integer=True),
+        max_px_per_pose=float(r.number(rt, "max_px_per_pose", "render", d.max_px_per_pose, positive=True)),
+    )
+    if render.flavour not in ("rgb", "mono", "spectral"):
+        r.fail("render.flavour", f"expected 'rgb', 'mono' or 'spectral', got {render.flavour!r}")
+
+    seq = r.table(raw, "sequence")
+    check_keys(seq, SEQUENCE_KEYS, source=r.source, where="sequence")
+    duration_s = float(r.number(seq, "duration_s", "sequence", positive=True))
+
+    cam = r.table(raw, "camera")
+    check_keys(cam, CAMERA_KEYS, source=r.source, where="camera")
+    fov_deg = float(r.number(cam, "fov_deg", "camera", 60.0, positive=True))
+    if fov_deg >= 180:
+        r.fail("camera.fov_deg", f"must be < 180, got {fov_deg}")
+    camera = []
+    for i, key in enumerate(cam.get("keyframes", [])):
+        where = f"camera.keyframes[{i}]"
+        check_keys(key, CAMERA_KEY_KEYS, source=r.source, where=where)
+        camera.append(
+            CameraKey(
+                t_s=float(r.number(key, "t_s", where, 0.0, minimum=0.0)),
+                origin=r.vector(key, "origin", where),
+                target=r.vector(key, "target", where),
+                up=r.vector(key, "up", where, (0.0, 1.0, 0.0)),
+            )
+        )
+    if not camera:
+        r.fail("camera.keyframes", "at least one keyframe (origin, target) is needed")
+    _check_times([k.t_s for k in camera], r, "camera.keyframes")
+    for i, key in enumerate(camera):
+        if np.allclose(key.origin, key.target):
+            r.fail(f"camera.keyframes[{i}]", "origin and target coincide")
+
+    motion = []
+    for i, mo in enumerate(raw.get("motion", [])):
+        where = f"motion[{i}]"
+        check_keys(mo, MOTION_KEYS, source=r.source, where=where)
+        objects = mo.get("object")
+        objects = [objects] if isinstance(objects, str) else objects
+        if not isinstance(objects, list) or not objects or not all(isinstance(o, str) for o in objects):
+            r.fail(f"{where}.object", f"expected the id (or a list of ids) of the moving shapes, got {objects!r}")
+        keys = []
+        for j, key in enumerate(mo.get("keyframes", [])):
+            kw = f"{where}.keyframes[{j}]"
+            check_keys(key, MOTION_KEY_KEYS, source=r.source, where=kw)
+            keys.append(
+                ObjectKey(
+                    t_s=float(r.number(key, "t_s", kw, minimum=0.0)),
+                    translate_m=r.vector(key, "translate_m", kw, (0.0, 0.0, 0.0)),
+                    rotate_deg=float(r.number(key, "rotate_deg", kw, 0.0)),
+                )
+            )
+        if not keys:
+            r.fail(f"{where}.keyframes", "at least one keyframe is needed")
+        _check_times([k.t_s for k in keys], r, f"{where}.keyframes")
+        axis = r.vector(mo, "axis", where, (0.0, 1.0, 0.0))
+        if np.linalg.norm(axis) == 0:
+            r.fail(f"{where}.axis", "must not be the zero vector")
+        motion.append(Motion(objects=tuple(objects), keyframes=tuple(keys), axis=axis))
+
+    groups = []
+    lg = r.table(raw, "light_groups")
+    if not lg:
+        r.fail("light_groups", "at least one light group is needed")
+    for name, spec in lg.items():
+        groups.append(_light_group(name, spec, r))
+    seen = {}
+    for g in groups:
+        for e in g.emitters:
+            if e in seen:
+                r.fail(f"light_groups.{g.name}.emitters", f"emitter {e!r} is already in light group {seen[e]!r}")
+            seen[e] = g.name
+
+    optics = r.table(raw, "optics")
+    return SceneManifest(
+        name=str(sc.get("name", path.stem)),
+        source=r.source,
+        builder=builder,
+        options=options,
+        render=render,
+        duration_s=duration_s,
+        fov_deg=fov_deg,
+        camera=tuple(camera),
+        motion=tuple(motion),
+        light_groups=tuple(groups),
+        optics=optics,
+        description=str(sc.get("description", "")),
+        raw=raw,
+    )
+
+
+def _check_times(times, r: _Reader, where: str) -> None:
+    if any(b <= a for a, b in zip(times, times[1:])):
+        r.fail(where, f"keyframe times must increase strictly, got {times}")
+
+
+def _light_group(name: str, spec: dict, r: _Reader) -> LightGroup:
+    where = f"light_groups.{name}"
+    if not isinstance(spec, dict):
+        r.fail(where, f"expected a table, got {spec!r}")
+    check_keys(spec, GROUP_KEYS, source=r.source, where=where)
+    emitters = spec.get("emitters")
+    if not isinstance(emitters, list) or not emitters or not all(isinstance(e, str) for e in emitters):
+        r.fail(f"{where}.emitters", f"expected a non-empty list of emitter ids, got {emitters!r}")
+    wf = spec.get("waveform", {"type": "dc"})
+    if not isinstance(wf, dict):
+        r.fail(f"{where}.waveform", f"expected a table such as {{type = 'pwm', ...}}, got {wf!r}")
+    waveform = waveform_from_spec(wf, source=r.source, key=f"{where}.waveform")
+    modes = [k for k in ("radiance_w_m2_sr", "luminance_cd_m2", "illuminance_lux") if k in spec]
+    if len(modes) != 1:
+        r.fail(where, "give exactly one of radiance_w_m2_sr, luminance_cd_m2 or illuminance_lux (with at_m)")
+    spectrum = spec.get("spectrum")
+    if spectrum is not None and not isinstance(spectrum, str):
+        r.fail(f"{where}.spectrum", f"expected a lamp spectrum name, got {spectrum!r}")
+    if modes[0] != "radiance_w_m2_sr" and spectrum is None:
+        r.fail(f"{where}.spectrum", f"{modes[0]} needs a lamp spectrum (e.g. 'FL2', 'HP1', 'LED-B3', 'D65')")
+    if spectrum is not None:
+        from gevsim.optics import lamp_spectrum
+
+        try:
+            lamp_spectrum(spectrum)
+        except ConfigError as exc:
+            r.fail(f"{where}.spectrum", str(exc))
+    emission = Emission(
+        spectrum=spectrum,
+        radiance_w_m2_sr=r.vector(spec, "radiance_w_m2_sr", where, nonnegative=True) if modes[0] == "radiance_w_m2_sr" else None,
+        luminance_cd_m2=float(r.number(spec, "luminance_cd_m2", where, minimum=0.0)) if modes[0] == "luminance_cd_m2" else None,
+        illuminance_lux=float(r.number(spec, "illuminance_lux", where, minimum=0.0)) if modes[0] == "illuminance_lux" else None,
+        at_m=float(r.number(spec, "at_m", where, positive=True)) if modes[0] == "illuminance_lux" else None,
+    )
+    return LightGroup(name=str(name), emitters=tuple(emitters), waveform=waveform, emission=emission)
+
+
+def override(manifest: SceneManifest, **changes) -> SceneManifest:
+    """A copy with render settings (width, height, spp, seed, max_px_per_pose) or
+    ``duration_s`` replaced; ``None`` values are ignored. ``raw`` follows suit."""
+    import copy
+    import dataclasses
+
+    changes = {k: v for k, v in changes.items() if v is not None}
+    raw = copy.deepcopy(manifest.raw)
+    duration = changes.pop("duration_s", manifest.duration_s)
+    if duration <= 0 or not math.isfinite(duration):
+        raise ConfigError(f"duration must be > 0, got {duration!r}", key="duration_s")
+    for key, value in changes.items():
+        if key not in RENDER_KEYS:
+            raise ConfigError(f"cannot override {key!r}{suggest(key, RENDER_KEYS)}", key=key)
+        if isinstance(value, (int, float)) and key != "seed" and value <= 0:
+            raise ConfigError(f"must be > 0, got {value!r}", key=key)
+        raw.setdefault("render", {})[key] = value
+    raw.setdefault("sequence", {})["duration_s"] = duration
+    return dataclasses.replace(
+        manifest, render=dataclasses.replace(manifest.render, **changes), duration_s=duration, raw=raw
+    )

@@ -1,0 +1,144 @@
+"""Write a rendered scene to a folder: basis EXRs, the mixed irradiance
+sequence, a JSON manifest, and (optionally) PNG plots.
+
+Everything is written into a temporary sibling folder that is renamed onto
+the target at the end, so a failed or interrupted run leaves no partial
+output and an earlier result survives until the new one is complete.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+
+import gevsim
+from gevsim.errors import ConfigError
+from gevsim.illumination import flicker_index, percent_flicker
+from gevsim.io import write_exr
+from gevsim.optics import Lens, cos4_map, focal_plane_irradiance, from_spec as optics_from_spec
+from gevsim.optics import illuminance_lux, luminance
+from gevsim.render.basis import BasisSet
+from gevsim.render.manifest import SceneManifest
+
+MANIFEST = "manifest.json"
+
+
+@contextlib.contextmanager
+def staged_dir(out: str | os.PathLike):
+    """Yield a temporary folder that replaces ``out`` when the block succeeds.
+
+    Refuses to replace an existing non-empty folder that is not a gevsim output.
+    """
+    out = Path(out)
+    if out.exists():
+        if not out.is_dir():
+            raise ConfigError("output exists and is not a folder", source=str(out))
+        if any(out.iterdir()) and not (out / MANIFEST).is_file():
+            raise ConfigError("output folder is not empty and holds no gevsim manifest.json; "
+                              "choose another --out", source=str(out))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        yield stage
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    old = None
+    if out.exists():
+        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        os.replace(out, old)
+    os.replace(stage, out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def scene_optics(manifest: SceneManifest):
+    """(Lens, Pixel) from the manifest's ``[optics]`` table."""
+    return optics_from_spec(manifest.optics, source=manifest.source)
+
+
+def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s, *, lens: Lens,
+                      exposure_s=None, flicker=True) -> np.ndarray:
+    """Focal-plane irradiance (T, H, W, C), photopic-equivalent W/m^2, at ``times_s``."""
+    r = manifest.render
+    radiance = basis.radiance(times_s, exposure_s=exposure_s, flicker=flicker)
+    cos4 = cos4_map(r.width, r.height, fov_x_deg=manifest.fov_deg)
+    return focal_plane_irradiance(radiance, lens=lens, cos4=cos4).astype(np.float32)
+
+
+def resolved_config(manifest: SceneManifest) -> str:
+    """The manifest as resolved (after ``extends`` and command-line overrides), as TOML."""
+    return tomli_w.dumps(manifest.raw)
+
+
+def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSet, *, variant, frame_rate_hz=None,
+                 exposure_s=None, plots=False, progress=None) -> dict:
+    """Write basis images, optional frames and plots, and ``manifest.json`` to ``out``."""
+    lens, pixel = scene_optics(manifest)
+    r = manifest.render
+    info = {
+        "gevsim": gevsim.__version__,
+        "scene": manifest.name,
+        "source": manifest.source,
+        "config_toml": resolved_config(manifest),
+        "seed": r.seed,
+        "spp": r.spp,
+        "width": r.width,
+        "height": r.height,
+        "duration_s": manifest.duration_s,
+        "variant": variant.variant,
+        "variant_reason": variant.reason,
+        "units": {"basis": "radiance W/(m^2 sr), photopic-equivalent (683*Y = cd/m^2)",
+                  "frames": "focal-plane irradiance W/m^2, photopic-equivalent (683*Y = lux)"},
+        "optics": {"f_number": lens.f_number, "transmission": lens.transmission},
+        "light_groups": [],
+        "poses": [{"t_s": float(t)} for t in basis.times_s],
+        "render_s": basis.render_s.tolist(),
+    }
+    for k, name in enumerate(basis.groups):
+        group = next(g for g in manifest.light_groups if g.name == name)
+        wf = group.waveform
+        info["light_groups"].append({
+            "name": name,
+            "emitters": list(group.emitters),
+            "spectrum": group.emission.spectrum,
+            "waveform": repr(wf),
+            "percent_flicker": float(percent_flicker(wf)),
+            "flicker_index": float(flicker_index(wf)),
+            "files": [f"basis/{name}/pose_{p:04d}.exr" for p in range(len(basis.times_s))],
+        })
+    with staged_dir(out) as stage:
+        for k, name in enumerate(basis.groups):
+            for p, t in enumerate(basis.times_s):
+                write_exr(stage / "basis" / name / f"pose_{p:04d}.exr", basis.images[p, k],
+                          metadata={"group": name, "t_s": float(t), "scene": manifest.name})
+        if frame_rate_hz:
+            times = np.arange(0.0, manifest.duration_s, 1.0 / frame_rate_hz)
+            frames = irradiance_frames(basis, manifest, times, lens=lens, exposure_s=exposure_s)
+            lux = illuminance_lux(luminance(frames if frames.shape[-1] == 3 else frames[..., 0]))
+            info["frames"] = {
+                "rate_hz": float(frame_rate_hz),
+                "exposure_s": exposure_s,
+                "t_s": times.tolist(),
+                "mean_lux": lux.reshape(len(times), -1).mean(axis=1).tolist(),
+                "files": [f"frames/frame_{i:05d}.exr" for i in range(len(times))],
+            }
+            for i, t in enumerate(times):
+                write_exr(stage / "frames" / f"frame_{i:05d}.exr", frames[i], metadata={"t_s": float(t)})
+                if progress:
+                    progress(i + 1, len(times))
+            if plots:
+                from gevsim import plots as plotting
+
+                plotting.contact_sheet(frames, times, stage / "contact_sheet.png", title=manifest.name)
+                plotting.waveform_plot(basis, times, lux.reshape(len(times), -1).mean(axis=1),
+                                       stage / "waveform.png", title=manifest.name)
+        (stage / MANIFEST).write_text(json.dumps(info, indent=2))
+    return info
