@@ -1,0 +1,36 @@
+# gevsim: the two commands of the README.
+#   make demo   renders the built-in office scene: basis images, a flickering
+#               irradiance sequence, a contact sheet and a waveform plot (out/demo)
+#   make test   runs the test suite
+# Both bootstrap .venv, the package with its extras, and the LLVM runtime that
+# Mitsuba's fast CPU variant needs (apt-get, when run as root). Re-running
+# either redoes nothing that is finished.
+
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.gevsim-installed
+DEMO_OUT ?= out/demo
+
+.PHONY: demo test llvm clean
+
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMP): pyproject.toml | $(PY)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[plot,test]'
+	touch $@
+
+llvm:
+	@bash scripts/ensure-llvm.sh
+
+demo: $(STAMP) llvm
+	$(VENV)/bin/gevsim info
+	$(VENV)/bin/gevsim render office --out $(DEMO_OUT) --frames 4000 --plots --cache .gevsim-cache
+
+test: $(STAMP) llvm
+	$(PY) -m pytest -q
+
+clean:
+	rm -rf out .gevsim-cache .pytest_cache .hypothesis
