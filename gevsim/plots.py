@@ -24,12 +24,12 @@ def _pyplot():
 
 
 def tone_map(irradiance: np.ndarray, *, low=None, high=None) -> np.ndarray:
-    """Log tone mapping to [0, 1]: ln(E) between the 1st and 99.9th percentiles
+    """Log tone mapping to [0, 1]: ln(E) between the 1st and 99th percentiles
     of the whole sequence (or ``low``/``high``), so frames share one scale."""
     e = np.maximum(np.asarray(irradiance, np.float64), 1e-12)
     log_e = np.log(e)
     lo = np.percentile(log_e, 1) if low is None else np.log(low)
-    hi = np.percentile(log_e, 99.9) if high is None else np.log(high)
+    hi = np.percentile(log_e, 99) if high is None else np.log(high)
     return np.clip((log_e - lo) / max(hi - lo, 1e-9), 0.0, 1.0)
 
 

@@ -11,7 +11,7 @@ from gevsim.render import shapes as s
 
 def build(options):
     return {
-        "table": s.rectangle([0.0, 0.0, 0.0], [2.0, 1.2], facing="+y", bsdf=s.diffuse(s.photo("moon", albedo=0.5))),
+        "table": s.rectangle([0.0, 0.0, 0.4], [2.4, 2.0], facing="+y", bsdf=s.diffuse(s.photo("moon", albedo=0.5))),
         "backdrop": s.rectangle([0.0, 0.6, -0.6], [2.0, 1.2], facing="+z", bsdf=s.diffuse(s.photo("rocket", albedo=0.6))),
         "floor": s.rectangle([0.0, -0.75, 0.0], [6.0, 6.0], facing="+y", bsdf=s.diffuse([0.2, 0.2, 0.2])),
         "book": s.box([-0.45, 0.03, 0.05], [0.3, 0.06, 0.22], bsdf=s.diffuse(s.photo("coffee", albedo=0.7))),

@@ -111,7 +111,7 @@ def choose_variant(
                 key="GEVSIM_VARIANT",
             )
         path = env.get("DRJIT_LIBLLVM_PATH") or libllvm if forced.startswith("llvm") else None
-        return VariantChoice(forced, "forced by GEVSIM_VARIANT", path, forced.startswith("scalar"))
+        return VariantChoice(forced, "forced by GEVSIM_VARIANT", path)
 
     cuda = f"cuda_ad_{flavour}"
     if cuda_ok and cuda in available:

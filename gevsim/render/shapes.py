@@ -51,11 +51,16 @@ def noise_texture(shape=(256, 256), *, mean: float = 0.1, spread: float = 0.05, 
 
 
 def diffuse(reflectance) -> dict:
-    """Lambertian BSDF from an RGB triple or an (H, W, 3) reflectance image."""
+    """Lambertian BSDF from an RGB triple or an (H, W, 3) reflectance image.
+
+    Images are flipped vertically because Mitsuba maps the first image row to
+    v = 0, the bottom of a rectangle: photographs then hang upright.
+    """
     import mitsuba as mi
 
     if isinstance(reflectance, np.ndarray) and reflectance.ndim == 3:
-        tex = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(reflectance)), "raw": True,
+        image = np.ascontiguousarray(reflectance[::-1])
+        tex = {"type": "bitmap", "bitmap": mi.Bitmap(image), "raw": True,
                "filter_type": "bilinear"}
         return {"type": "diffuse", "reflectance": tex}
     return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(reflectance)}}
