@@ -71,6 +71,15 @@ def area_light() -> dict:
     return {"type": "area", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}
 
 
+def _dress(shape: dict, bsdf, emitter) -> dict:
+    """Attach a BSDF and/or an emitter to a shape dict."""
+    if bsdf is not None:
+        shape["bsdf"] = bsdf
+    if emitter is not None:
+        shape["emitter"] = emitter
+    return shape
+
+
 def rectangle(centre, size, *, facing, bsdf=None, emitter=None, spin_deg: float = 0.0) -> dict:
     """A ``size[0]`` x ``size[1]`` rectangle at ``centre`` whose front faces ``facing``.
 
@@ -86,39 +95,23 @@ def rectangle(centre, size, *, facing, bsdf=None, emitter=None, spin_deg: float 
         t = t.rotate(list(axis), angle)
     t = t.rotate([0, 0, 1], spin_deg).scale([size[0] / 2, size[1] / 2, 1])
     out = {"type": "rectangle", "to_world": t}
-    if bsdf is not None:
-        out["bsdf"] = bsdf
-    if emitter is not None:
-        out["emitter"] = emitter
-    return out
+    return _dress(out, bsdf, emitter)
 
 
 def box(centre, size, *, bsdf=None, emitter=None) -> dict:
     """An axis-aligned box (Mitsuba ``cube`` mesh) of full extents ``size``."""
     out = {"type": "cube", "to_world": _T().translate(list(centre)).scale([s / 2 for s in size])}
-    if bsdf is not None:
-        out["bsdf"] = bsdf
-    if emitter is not None:
-        out["emitter"] = emitter
-    return out
+    return _dress(out, bsdf, emitter)
 
 
 def sphere(centre, radius, *, bsdf=None, emitter=None) -> dict:
     out = {"type": "sphere", "center": list(centre), "radius": float(radius)}
-    if bsdf is not None:
-        out["bsdf"] = bsdf
-    if emitter is not None:
-        out["emitter"] = emitter
-    return out
+    return _dress(out, bsdf, emitter)
 
 
 def cylinder(p0, p1, radius, *, bsdf=None, emitter=None) -> dict:
     out = {"type": "cylinder", "p0": list(p0), "p1": list(p1), "radius": float(radius)}
-    if bsdf is not None:
-        out["bsdf"] = bsdf
-    if emitter is not None:
-        out["emitter"] = emitter
-    return out
+    return _dress(out, bsdf, emitter)
 
 
 def room(width, depth, height, *, walls, floor, ceiling, centre_z: float = 0.0) -> dict:
