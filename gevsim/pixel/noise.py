@@ -1,0 +1,51 @@
+"""Noise of the logarithmic pixel: analytic variances and fixed patterns.
+
+Temporal noise is generated inside the photoreceptor kernel
+(:mod:`gevsim.pixel._kernels`); this module holds the analytic results it must
+reproduce and draws the per-pixel fixed patterns from a numpy Generator.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.constants import elementary_charge
+
+from gevsim.pixel.params import NoiseParams
+
+
+def shot_noise_variance_ln(photocurrent_a, cutoff_hz):
+    """Stationary variance (ln units^2) of shot noise through a first-order low-pass.
+
+    The shot noise of a current I has one-sided PSD 2 q I; in the log domain
+    the relative fluctuation dI/I has PSD 2 q / I. A first-order low-pass with
+    cutoff f_c has noise bandwidth (pi/2) f_c, so var = pi q f_c / I.
+    """
+    i = np.asarray(photocurrent_a, float)
+    return math.pi * elementary_charge * np.asarray(cutoff_hz, float) / i
+
+
+def flicker_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndarray, np.ndarray]:
+    """Corner frequencies and variances of Ornstein-Uhlenbeck processes whose sum has
+    a 1/f spectrum between the two corners (one pole per decade, equal variance:
+    McWhorter's construction); total variance = (flicker_noise_v / n U_T)^2."""
+    if noise.flicker_noise_v == 0:
+        return np.zeros(0), np.zeros(0)
+    decades = math.log10(noise.flicker_noise_high_hz / noise.flicker_noise_low_hz)
+    m = max(2, min(8, math.ceil(decades) + 1))
+    hz = np.geomspace(noise.flicker_noise_low_hz, noise.flicker_noise_high_hz, m)
+    var = np.full(m, (noise.flicker_noise_v / volts_per_ln) ** 2 / m)
+    return hz, var
+
+
+def fixed_pattern(shape, noise: NoiseParams, *, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel photocurrent gain (PRNU) and dark current (DSNU, lognormal), drawn once.
+
+    The lognormal is scaled so that the mean dark current is ``dark_current_a``.
+    """
+    gain = 1.0 + noise.prnu * rng.standard_normal(shape)
+    gain = np.clip(gain, 0.0, None)
+    s = noise.dark_current_spread
+    dark = noise.dark_current_a * np.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
+    return gain, dark

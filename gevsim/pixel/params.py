@@ -1,0 +1,170 @@
+"""Parameters of the pixel front end: photoreceptor, noise, event circuits.
+
+Frozen dataclasses with SI units in the field names. ``ln`` units are natural
+log of photocurrent: a photoreceptor voltage V maps to V / (n U_T).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from scipy.constants import Boltzmann, elementary_charge
+
+from gevsim.errors import ConfigError, check_keys
+
+
+def _check(cls_name: str, name: str, value, *, positive=False, nonnegative=False, allow_inf=False, upper=None):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
+        raise ValueError(f"{cls_name}.{name} must be a number, got {value!r}")
+    if math.isinf(value) and not allow_inf:
+        raise ValueError(f"{cls_name}.{name} must be finite, got {value!r}")
+    if positive and not value > 0:
+        raise ValueError(f"{cls_name}.{name} must be > 0, got {value!r}")
+    if nonnegative and not value >= 0:
+        raise ValueError(f"{cls_name}.{name} must be >= 0, got {value!r}")
+    if upper is not None and value > upper:
+        raise ValueError(f"{cls_name}.{name} must be <= {upper}, got {value!r}")
+
+
+def _from_table(cls, table: dict, *, source, where):
+    """Build dataclass ``cls`` from a TOML table; errors name the file and key."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"expected a table, got {table!r}", source=source, key=where)
+    check_keys(table, [f.name for f in fields(cls)], source=source, where=where)
+    try:
+        return cls(**table)
+    except (ValueError, TypeError) as exc:
+        key = next((k for k in table if f".{k} " in f"{exc} "), None)
+        raise ConfigError(str(exc), source=source, key=f"{where}.{key}" if key else where) from None
+
+
+@dataclass(frozen=True)
+class PhotoreceptorParams:
+    """Logarithmic photoreceptor V = V0 + n U_T ln(I_ph + I_dark) with a first-order
+    low-pass whose cutoff grows in proportion to photocurrent up to ``max_cutoff_hz``
+    (Delbruck & Mead 1994; Lichtsteiner, Posch & Delbruck 2008).
+
+    Parameters
+    ----------
+    cutoff_hz : cutoff at ``cutoff_ref_photocurrent_a`` (scales linearly with current).
+    cutoff_ref_photocurrent_a : photocurrent at which the cutoff is ``cutoff_hz``.
+    max_cutoff_hz : amplifier-limited maximum cutoff (``inf``: none).
+    second_pole_hz : optional fixed second pole (source follower), or None.
+    slope_factor : n, the subthreshold slope factor (1/kappa).
+    temperature_k : for the thermal voltage U_T = k T / q.
+    v0_v : output voltage at a total photocurrent of 1 A (an offset only).
+    """
+
+    cutoff_hz: float = 3000.0
+    cutoff_ref_photocurrent_a: float = 1e-12
+    max_cutoff_hz: float = 10000.0
+    second_pole_hz: float | None = None
+    slope_factor: float = 1.4
+    temperature_k: float = 300.0
+    v0_v: float = 2.5
+
+    def __post_init__(self):
+        n = type(self).__name__
+        _check(n, "cutoff_hz", self.cutoff_hz, positive=True, allow_inf=True)
+        _check(n, "cutoff_ref_photocurrent_a", self.cutoff_ref_photocurrent_a, positive=True)
+        _check(n, "max_cutoff_hz", self.max_cutoff_hz, positive=True, allow_inf=True)
+        if self.second_pole_hz is not None:
+            _check(n, "second_pole_hz", self.second_pole_hz, positive=True)
+        _check(n, "slope_factor", self.slope_factor, positive=True)
+        _check(n, "temperature_k", self.temperature_k, positive=True)
+        _check(n, "v0_v", self.v0_v)
+
+    @property
+    def thermal_voltage_v(self) -> float:
+        return Boltzmann * self.temperature_k / elementary_charge
+
+    @property
+    def volts_per_ln(self) -> float:
+        """n U_T: volts per unit of ln(photocurrent)."""
+        return self.slope_factor * self.thermal_voltage_v
+
+    def cutoff_at(self, photocurrent_a):
+        """Cutoff frequency (Hz) at a total photocurrent (A): proportional, then capped."""
+        import numpy as np
+
+        i = np.asarray(photocurrent_a, float)
+        if math.isinf(self.cutoff_hz):
+            return np.full_like(i, self.max_cutoff_hz)
+        return np.minimum(self.cutoff_hz * i / self.cutoff_ref_photocurrent_a, self.max_cutoff_hz)
+
+    @classmethod
+    def from_table(cls, table: dict, *, source=None, where="photoreceptor"):
+        return _from_table(cls, table, source=source, where=where)
+
+
+@dataclass(frozen=True)
+class NoiseParams:
+    """Pixel noise sources.
+
+    Parameters
+    ----------
+    shot_noise : photon/photocurrent shot noise (PSD 2 q I) through the photoreceptor filter.
+    read_noise_v : white voltage noise (rms, volts) added to each output sample (readout/comparator).
+    dark_current_a : mean dark current (A); also sets the floor of the log response.
+    dark_current_spread : DSNU, lognormal sigma of the per-pixel dark current (fixed pattern).
+    prnu : photo response non-uniformity, relative sigma of the per-pixel gain (fixed pattern).
+    flicker_noise_v : rms of optional 1/f voltage noise between the two corner frequencies (0: off).
+    """
+
+    shot_noise: bool = True
+    read_noise_v: float = 0.0
+    dark_current_a: float = 1e-15
+    dark_current_spread: float = 0.0
+    prnu: float = 0.0
+    flicker_noise_v: float = 0.0
+    flicker_noise_low_hz: float = 1.0
+    flicker_noise_high_hz: float = 1000.0
+
+    def __post_init__(self):
+        n = type(self).__name__
+        if not isinstance(self.shot_noise, bool):
+            raise ValueError(f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
+        for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "prnu", "flicker_noise_v"):
+            _check(n, name, getattr(self, name), nonnegative=True)
+        _check(n, "prnu", self.prnu, nonnegative=True, upper=0.5)
+        _check(n, "flicker_noise_low_hz", self.flicker_noise_low_hz, positive=True)
+        _check(n, "flicker_noise_high_hz", self.flicker_noise_high_hz, positive=True)
+        if self.flicker_noise_high_hz <= self.flicker_noise_low_hz:
+            raise ValueError(f"{n}.flicker_noise_high_hz must exceed flicker_noise_low_hz, "
+                             f"got {self.flicker_noise_high_hz!r} <= {self.flicker_noise_low_hz!r}")
+
+    @classmethod
+    def from_table(cls, table: dict, *, source=None, where="noise"):
+        return _from_table(cls, table, source=source, where=where)
+
+
+@dataclass(frozen=True)
+class EventParams:
+    """Event-circuit parameters used by the event emulators.
+
+    Parameters
+    ----------
+    threshold_on_ln, threshold_off_ln : contrast thresholds in ln units.
+    threshold_mismatch_ln : per-comparator fixed-pattern sigma of the thresholds (ln units).
+    refractory_s : dead time after an event.
+    leak_rate_hz : mean rate of leak (ON) events per pixel; leak_rate_spread its relative sigma.
+    """
+
+    threshold_on_ln: float = 0.2
+    threshold_off_ln: float = 0.2
+    threshold_mismatch_ln: float = 0.0
+    refractory_s: float = 0.0
+    leak_rate_hz: float = 0.0
+    leak_rate_spread: float = 0.0
+
+    def __post_init__(self):
+        n = type(self).__name__
+        _check(n, "threshold_on_ln", self.threshold_on_ln, positive=True)
+        _check(n, "threshold_off_ln", self.threshold_off_ln, positive=True)
+        for name in ("threshold_mismatch_ln", "refractory_s", "leak_rate_hz", "leak_rate_spread"):
+            _check(n, name, getattr(self, name), nonnegative=True)
+
+    @classmethod
+    def from_table(cls, table: dict, *, source=None, where="events"):
+        return _from_table(cls, table, source=source, where=where)

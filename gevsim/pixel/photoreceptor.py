@@ -1,0 +1,122 @@
+"""Logarithmic photoreceptor with light-dependent bandwidth and noise.
+
+V = V0 + n U_T ln(I_ph + I_dark), low-pass filtered with a cutoff that grows
+in proportion to photocurrent up to an amplifier-limited maximum (dim pixels
+are slow). The update for a step of held photocurrent is the exact solution
+(1 - exp(-dt/tau)), so results do not depend on dt for piecewise-constant
+input; the optional second pole is also integrated exactly.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.constants import elementary_charge
+
+from gevsim.pixel import _kernels
+from gevsim.pixel.noise import fixed_pattern, flicker_noise_poles
+from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
+
+
+class Photoreceptor:
+    """Stateful photoreceptor for an (H, W) array of pixels.
+
+    Calling :meth:`process` on consecutive chunks of a sequence gives the same
+    output, bit for bit, as one call on the whole sequence.
+
+    Parameters
+    ----------
+    shape : (H, W).
+    params, noise : the photoreceptor and noise parameters (see a sensor preset).
+    rng : draws the fixed patterns and the key of the temporal noise.
+    t0_s : start time; the first step ends at the first time given to :meth:`process`.
+    """
+
+    def __init__(self, shape, *, params: PhotoreceptorParams, noise: NoiseParams, rng: np.random.Generator,
+                 t0_s: float = 0.0):
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        if len(shape) != 2 or min(shape) < 1:
+            raise ValueError(f"shape must be (H, W) with H, W >= 1, got {shape!r}")
+        bandwidth = math.isfinite(params.cutoff_hz) or math.isfinite(params.max_cutoff_hz)
+        if noise.shot_noise and not bandwidth:
+            raise ValueError("shot noise needs a finite photoreceptor bandwidth (its variance grows with it)")
+        self.shape = tuple(int(s) for s in shape)
+        self.params, self.noise = params, noise
+        gain, dark = fixed_pattern(self.shape, noise, rng=rng)
+        self.gain = gain.ravel().astype(np.float64)
+        self.dark_a = dark.ravel().astype(np.float64)
+        self.key = int(rng.integers(0, 2**32))
+        self.fn_hz, self.fn_var = flicker_noise_poles(noise, params.volts_per_ln)
+        n = self.gain.size
+        self.fn = (np.sqrt(self.fn_var)[:, None] * rng.standard_normal((len(self.fn_hz), n))).astype(np.float64)
+        self.v1 = np.zeros(n)
+        self.v2 = np.zeros(n)
+        self.t_s = float(t0_s)
+        self.step = 0
+        self.started = False
+
+    @property
+    def volts_per_ln(self) -> float:
+        return self.params.volts_per_ln
+
+    def to_volts(self, v_ln):
+        """Photoreceptor output in volts from ln units."""
+        return self.params.v0_v + self.params.volts_per_ln * np.asarray(v_ln)
+
+    def steady_state(self, photocurrent_a) -> np.ndarray:
+        """Noise-free settled output (ln units) for a constant photocurrent (H, W)."""
+        i = np.asarray(photocurrent_a, float).reshape(-1)
+        return np.log(i * self.gain + self.dark_a).reshape(self.shape)
+
+    def process(self, photocurrent_a, t_s) -> np.ndarray:
+        """Advance over T steps and return the output (T, H, W) float32, in ln units.
+
+        Parameters
+        ----------
+        photocurrent_a : (T, H, W) photocurrent; sample k is held from the end of
+            the previous step to ``t_s[k]``.
+        t_s : (T,) strictly increasing end times of the steps, after the current time.
+        """
+        p = self.params
+        current = np.asarray(photocurrent_a)
+        t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+        if current.ndim != 3 or current.shape[1:] != self.shape:
+            raise ValueError(f"photocurrent must have shape (T, {self.shape[0]}, {self.shape[1]}), got {current.shape}")
+        if len(t) != current.shape[0]:
+            raise ValueError(f"t_s has {len(t)} times but photocurrent has {current.shape[0]} steps")
+        if len(t) == 0:
+            return np.zeros((0,) + self.shape, np.float32)
+        if not np.all(np.isfinite(t)):
+            raise ValueError("t_s must be finite")
+        dt = np.diff(np.concatenate([[self.t_s], t]))
+        if np.any(dt <= 0):
+            k = int(np.argmax(dt <= 0))
+            raise ValueError(f"time must increase strictly: step {k} ends at t = {t[k]!r} s, "
+                             f"after {self.t_s if k == 0 else t[k - 1]!r} s")
+        flat = current.reshape(len(t), -1)
+        if flat.dtype not in (np.float32, np.float64):
+            flat = flat.astype(np.float64)
+        v1, v2, fn = self.v1.copy(), self.v2.copy(), self.fn.copy()
+        if not self.started:
+            first = flat[0].astype(np.float64) * self.gain + self.dark_a
+            if np.all(np.isfinite(first)) and np.all(first > 0):  # else the kernel reports the bad values
+                v1 = np.log(first)
+                v2 = v1.copy()
+        out = np.empty(flat.shape, np.float32)
+        fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
+        bad = _kernels.photoreceptor(
+            flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint32(self.key), self.step,
+            fc_ref, p.cutoff_ref_photocurrent_a, p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf,
+            p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0,
+            self.noise.read_noise_v / p.volts_per_ln, _kernels.NORMAL_TABLE, out,
+        )
+        if bad:
+            raise ValueError(f"photocurrent must be finite and >= 0 (> 0 where the dark current is 0): "
+                             f"{bad} of {flat.size} values are not")
+        self.v1, self.v2, self.fn = v1, v2, fn
+        self.t_s = float(t[-1])
+        self.step += len(t)
+        self.started = True
+        return out.reshape((len(t),) + self.shape)

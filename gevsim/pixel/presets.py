@@ -1,0 +1,126 @@
+"""Sensor presets: TOML files under ``noise/`` with their sources in comments.
+
+A preset has the tables ``[sensor]`` (geometry), ``[photoreceptor]``,
+``[noise]``, ``[events]`` and optionally ``[aps]``. The photoreceptor cutoff
+may be stated at an illuminance (``cutoff_ref_lux``, as datasheets do); it is
+converted to photocurrent with the pixel area, fill factor and the silicon
+responsivity for ``bandwidth_reference_spectrum``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.pixel.aps import ApsParams
+from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams
+
+PRESETS_DIR = Path(__file__).resolve().parents[2] / "noise"
+_PACKAGED = Path(__file__).resolve().parents[1] / "_noise"
+TABLES = ("sensor", "photoreceptor", "noise", "events", "aps")
+SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_factor",
+               "bandwidth_reference_spectrum")
+
+
+@dataclass(frozen=True)
+class SensorPreset:
+    """A named sensor: geometry plus photoreceptor, noise, event and (optional) APS parameters."""
+
+    name: str
+    description: str
+    width: int
+    height: int
+    pixel_pitch_m: float
+    fill_factor: float
+    photoreceptor: PhotoreceptorParams
+    noise: NoiseParams
+    events: EventParams
+    aps: ApsParams | None
+    source: str
+
+    def ideal(self) -> SensorPreset:
+        """The same sensor with every noise source and mismatch off (counterfactual runs)."""
+        import dataclasses
+
+        return dataclasses.replace(
+            self,
+            name=f"{self.name}-noise-free",
+            noise=NoiseParams(shot_noise=False, dark_current_a=self.noise.dark_current_a),
+            events=dataclasses.replace(self.events, threshold_mismatch_ln=0.0, leak_rate_hz=0.0),
+        )
+
+
+def preset_names() -> dict[str, Path]:
+    found = {}
+    for folder in (_PACKAGED, PRESETS_DIR):
+        if folder.is_dir():
+            found.update({p.stem: p for p in sorted(folder.glob("*.toml"))})
+    return found
+
+
+def load_preset(name_or_path: str | Path) -> SensorPreset:
+    """Load a preset by name (``dvs128``, ``davis346``, ``imx636``, ``ideal``) or TOML path."""
+    path = Path(name_or_path)
+    if path.suffix != ".toml":
+        names = preset_names()
+        if str(name_or_path) not in names:
+            raise ConfigError(f"unknown sensor preset {str(name_or_path)!r}{suggest(str(name_or_path), names)}; "
+                              f"presets: {', '.join(names)}")
+        path = names[str(name_or_path)]
+    src = str(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError("no such sensor preset file", source=src) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"malformed TOML: {exc}", source=src) from None
+    check_keys(raw, TABLES, source=src, where="")
+    for table in ("sensor", "photoreceptor", "noise", "events"):
+        if not isinstance(raw.get(table), dict):
+            raise ConfigError(f"missing table [{table}]", source=src, key=table)
+    sensor = dict(raw["sensor"])
+    check_keys(sensor, SENSOR_KEYS, source=src, where="sensor")
+    for key in ("width", "height"):
+        if not isinstance(sensor.get(key), int) or isinstance(sensor.get(key), bool) or sensor[key] < 1:
+            raise ConfigError(f"expected a positive integer, got {sensor.get(key)!r}", source=src, key=f"sensor.{key}")
+    for key, upper in (("pixel_pitch_m", 1e-3), ("fill_factor", 1.0)):
+        value = sensor.get(key)
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or not 0 < value <= upper:
+            raise ConfigError(f"expected a number in (0, {upper}], got {value!r}", source=src, key=f"sensor.{key}")
+    receptor = dict(raw["photoreceptor"])
+    if "cutoff_ref_lux" in receptor:
+        lux = receptor.pop("cutoff_ref_lux")
+        if "cutoff_ref_photocurrent_a" in receptor:
+            raise ConfigError("give cutoff_ref_lux or cutoff_ref_photocurrent_a, not both", source=src,
+                              key="photoreceptor.cutoff_ref_lux")
+        if not isinstance(lux, (int, float)) or isinstance(lux, bool) or not (lux > 0 and math.isfinite(lux)):
+            raise ConfigError(f"expected a positive number, got {lux!r}", source=src, key="photoreceptor.cutoff_ref_lux")
+        receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
+            lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
+            spectrum=sensor.get("bandwidth_reference_spectrum", "D65"), source=src)
+    aps = raw.get("aps")
+    return SensorPreset(
+        name=str(sensor.get("name", path.stem)),
+        description=str(sensor.get("description", "")),
+        width=sensor["width"],
+        height=sensor["height"],
+        pixel_pitch_m=float(sensor["pixel_pitch_m"]),
+        fill_factor=float(sensor["fill_factor"]),
+        photoreceptor=PhotoreceptorParams.from_table(receptor, source=src),
+        noise=NoiseParams.from_table(raw["noise"], source=src),
+        events=EventParams.from_table(raw["events"], source=src),
+        aps=None if aps is None else ApsParams.from_table(aps, source=src),
+        source=src,
+    )
+
+
+def lux_to_photocurrent_a(lux: float, *, pixel_pitch_m: float, fill_factor: float, spectrum: str = "D65",
+                          source: str | None = None) -> float:
+    """Photocurrent of one pixel at a focal-plane illuminance, for a lamp spectrum and the default silicon QE."""
+    from gevsim.optics import lamp_spectrum, responsivity_a_per_lm
+
+    sd = lamp_spectrum(spectrum, source=source, key="sensor.bandwidth_reference_spectrum")
+    return float(lux * pixel_pitch_m**2 * fill_factor * responsivity_a_per_lm(sd))
