@@ -69,13 +69,20 @@ def normal(h, table):
     return lo + frac * (np.float64(table[i + 1]) - lo)
 
 
+@njit(inline="always")
+def stream_key(key, step, stream):
+    """Key of one noise stream (shot, read, 1/f poles) at one step; a pixel's
+    deviate is then ``normal(mix32(stream_key ^ pixel))``: one hash per deviate."""
+    return mix32(step_key(key, step) ^ mix32(np.uint32(stream) * np.uint32(0x9E3779B9)))
+
+
 @njit(cache=True)
 def normals(key, step, count, stream, table):
     """``count`` deviates of one (key, step, stream): for tests of the generator."""
     out = np.empty(count)
-    sk = step_key(key, step)
+    sk = stream_key(key, step, stream)
     for p in range(count):
-        out[p] = normal(mix32(mix32(sk ^ np.uint32(p)) ^ np.uint32(stream)), table)
+        out[p] = normal(mix32(sk ^ np.uint32(p)), table)
     return out
 
 
@@ -96,6 +103,7 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
     """
     T, P = current.shape
     M = fn.shape[0]
+    fc_per_a = fc_ref / i_ref
     nblocks = (P + BLOCK - 1) // BLOCK
     bad = np.zeros(nblocks, np.int64)
     # 1/f poles: their decay and innovation scale depend on the step only.
@@ -111,7 +119,11 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
         hi = min(P, lo + BLOCK)
         for t in range(T):
             d = dt[t]
-            sk = step_key(key, step0 + t)
+            k_shot = stream_key(key, step0 + t, 1)
+            k_read = stream_key(key, step0 + t, 2)
+            k_fn = np.empty(M, np.uint32)
+            for m in range(M):
+                k_fn[m] = stream_key(key, step0 + t, 3 + m)
             b2 = math.exp(-_TWO_PI * f2 * d) if f2 > 0 else 0.0
             for p in range(lo, hi):
                 i_ph = current[t, p]
@@ -127,17 +139,18 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
                 # level; the filter states stay in double precision.
                 u = np.float64(math.log(np.float32(itot)))
                 if fc_ref > 0:
-                    fc = min(fc_ref * itot / i_ref, fc_max)
+                    fc = min(fc_per_a * itot, fc_max)
                     a = np.float64(math.exp(np.float32(-_TWO_PI * fc * d)))
                 else:
                     fc = np.inf
                     a = 0.0
                 e1 = v1[p] - u
                 x = u + a * e1
-                h = mix32(sk ^ np.uint32(p))
                 if shot_q > 0.0:
                     # Exact Ornstein-Uhlenbeck transition: stationary variance pi q fc / I.
-                    x += math.sqrt(shot_q * fc / itot * (1.0 - a * a)) * normal(mix32(h ^ np.uint32(1)), table)
+                    # (single precision: a noise amplitude needs no more)
+                    x += np.float64(math.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a)))) * normal(
+                        mix32(k_shot ^ np.uint32(p)), table)
                 v1[p] = x
                 if f2 > 0:
                     if fc_ref > 0:
@@ -154,10 +167,11 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
                 else:
                     y = x
                 for m in range(M):
-                    s = fn_alpha[t, m] * fn[m, p] + fn_scale[t, m] * normal(mix32(h ^ np.uint32(3 + m)), table)
+                    s = fn_alpha[t, m] * fn[m, p] + fn_scale[t, m] * normal(
+                        mix32(k_fn[m] ^ np.uint32(p)), table)
                     fn[m, p] = s
                     y += s
                 if read_sd > 0.0:
-                    y += read_sd * normal(mix32(h ^ np.uint32(2)), table)
+                    y += read_sd * normal(mix32(k_read ^ np.uint32(p)), table)
                 out[t, p] = y
     return bad.sum()

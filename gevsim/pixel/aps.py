@@ -11,35 +11,27 @@ and PRNU are fixed patterns drawn once per sensor.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.constants import e as ELEMENTARY_CHARGE_C
 
-from gevsim.errors import ConfigError, check_keys
+from gevsim.config import FieldError, FromTable
 
 __all__ = ["ApsParams", "ApsSensor", "exposure_electrons", "photon_transfer", "system_gain_from_ptc"]
 
 
-class _FieldError(ValueError):
-    """A bad :class:`ApsParams` field; ``field`` names it for :meth:`ApsParams.from_table`."""
-
-    def __init__(self, field: str, message: str):
-        self.field = field
-        super().__init__(message)
-
-
 def _number(value, name: str, *, low: float, low_open: bool = False) -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise _FieldError(name, f"{name}={value!r} must be a real number")
+        raise FieldError(name, f"{name}={value!r} must be a real number")
     x = float(value)
     if not math.isfinite(x) or x < low or (low_open and x == low):
-        raise _FieldError(name, f"{name}={value!r} must be finite and {'>' if low_open else '>='} {low:g}")
+        raise FieldError(name, f"{name}={value!r} must be finite and {'>' if low_open else '>='} {low:g}")
     return x
 
 
 @dataclass(frozen=True)
-class ApsParams:
+class ApsParams(FromTable):
     """EMVA 1288 parameters of a linear APS pixel and its ADC.
 
     Defaults are DAVIS346-like. ``bit_depth=10`` and a dynamic range of
@@ -49,6 +41,8 @@ class ApsParams:
     ``fill_factor_ratio`` is the APS photocurrent as a fraction of the DVS
     photocurrent (> 0); DAVIS pixels share one photodiode, so 1.
     """
+
+    TABLE = "aps"
 
     full_well_e: float = 20000.0         #: saturation capacity, e- (> 0)
     read_noise_e: float = 30.0           #: temporal dark noise sigma_d, e- rms
@@ -64,7 +58,7 @@ class ApsParams:
         bits = self.bit_depth
         is_int = isinstance(bits, (int, np.integer)) and not isinstance(bits, (bool, np.bool_))
         if not is_int or not 8 <= bits <= 16:
-            raise _FieldError("bit_depth", f"bit_depth={bits!r} must be an integer in 8..16")
+            raise FieldError("bit_depth", f"bit_depth={bits!r} must be an integer in 8..16")
         object.__setattr__(self, "bit_depth", int(bits))
         for name, low, low_open in (("full_well_e", 0.0, True), ("read_noise_e", 0.0, False),
                                     ("dark_current_e_per_s", 0.0, False), ("dsnu_e", 0.0, False),
@@ -72,33 +66,15 @@ class ApsParams:
                                     ("offset_dn", 0.0, False), ("fill_factor_ratio", 0.0, True)):
             object.__setattr__(self, name, _number(getattr(self, name), name, low=low, low_open=low_open))
         if self.prnu >= 1.0:
-            raise _FieldError("prnu", f"prnu={self.prnu!r} must be < 1 (a relative sigma)")
+            raise FieldError("prnu", f"prnu={self.prnu!r} must be < 1 (a relative sigma)")
         if self.offset_dn > self.max_dn:
-            raise _FieldError("offset_dn",
+            raise FieldError("offset_dn",
                               f"offset_dn={self.offset_dn!r} exceeds 2**bit_depth - 1 = {self.max_dn}")
 
     @property
     def max_dn(self) -> int:
         """Largest output code, ``2**bit_depth - 1``."""
         return (1 << self.bit_depth) - 1
-
-    @classmethod
-    def from_table(cls, table: dict, *, source: str | None = None, where: str = "aps") -> ApsParams:
-        """Build from a config table whose keys are field names (missing keys take defaults).
-
-        Raises
-        ------
-        ConfigError
-            Unknown key (with a did-you-mean) or a bad value, naming ``source`` and the key.
-        """
-        if not isinstance(table, dict):
-            raise ConfigError(f"expected a table, got {type(table).__name__}", source=source, key=where)
-        check_keys(table, [f.name for f in fields(cls)], source=source, where=where)
-        try:
-            return cls(**table)
-        except _FieldError as err:
-            key = f"{where}.{err.field}" if where else err.field
-            raise ConfigError(str(err), source=source, key=key) from None
 
 
 def _real_array(x, name: str) -> np.ndarray:

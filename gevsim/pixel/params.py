@@ -7,40 +7,28 @@ log of photocurrent: a photoreceptor voltage V maps to V / (n U_T).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 from scipy.constants import Boltzmann, elementary_charge
 
-from gevsim.errors import ConfigError, check_keys
+from gevsim.config import FieldError, FromTable
 
 
 def _check(cls_name: str, name: str, value, *, positive=False, nonnegative=False, allow_inf=False, upper=None):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
-        raise ValueError(f"{cls_name}.{name} must be a number, got {value!r}")
+        raise FieldError(name, f"{cls_name}.{name} must be a number, got {value!r}")
     if math.isinf(value) and not allow_inf:
-        raise ValueError(f"{cls_name}.{name} must be finite, got {value!r}")
+        raise FieldError(name, f"{cls_name}.{name} must be finite, got {value!r}")
     if positive and not value > 0:
-        raise ValueError(f"{cls_name}.{name} must be > 0, got {value!r}")
+        raise FieldError(name, f"{cls_name}.{name} must be > 0, got {value!r}")
     if nonnegative and not value >= 0:
-        raise ValueError(f"{cls_name}.{name} must be >= 0, got {value!r}")
+        raise FieldError(name, f"{cls_name}.{name} must be >= 0, got {value!r}")
     if upper is not None and value > upper:
-        raise ValueError(f"{cls_name}.{name} must be <= {upper}, got {value!r}")
-
-
-def _from_table(cls, table: dict, *, source, where):
-    """Build dataclass ``cls`` from a TOML table; errors name the file and key."""
-    if not isinstance(table, dict):
-        raise ConfigError(f"expected a table, got {table!r}", source=source, key=where)
-    check_keys(table, [f.name for f in fields(cls)], source=source, where=where)
-    try:
-        return cls(**table)
-    except (ValueError, TypeError) as exc:
-        key = next((k for k in table if f".{k} " in f"{exc} "), None)
-        raise ConfigError(str(exc), source=source, key=f"{where}.{key}" if key else where) from None
+        raise FieldError(name, f"{cls_name}.{name} must be <= {upper}, got {value!r}")
 
 
 @dataclass(frozen=True)
-class PhotoreceptorParams:
+class PhotoreceptorParams(FromTable):
     """Logarithmic photoreceptor V = V0 + n U_T ln(I_ph + I_dark) with a first-order
     low-pass whose cutoff grows in proportion to photocurrent up to ``max_cutoff_hz``
     (Delbruck & Mead 1994; Lichtsteiner, Posch & Delbruck 2008).
@@ -55,6 +43,8 @@ class PhotoreceptorParams:
     temperature_k : for the thermal voltage U_T = k T / q.
     v0_v : output voltage at a total photocurrent of 1 A (an offset only).
     """
+
+    TABLE = "photoreceptor"
 
     cutoff_hz: float = 3000.0
     cutoff_ref_photocurrent_a: float = 1e-12
@@ -93,13 +83,10 @@ class PhotoreceptorParams:
             return np.full_like(i, self.max_cutoff_hz)
         return np.minimum(self.cutoff_hz * i / self.cutoff_ref_photocurrent_a, self.max_cutoff_hz)
 
-    @classmethod
-    def from_table(cls, table: dict, *, source=None, where="photoreceptor"):
-        return _from_table(cls, table, source=source, where=where)
 
 
 @dataclass(frozen=True)
-class NoiseParams:
+class NoiseParams(FromTable):
     """Pixel noise sources.
 
     Parameters
@@ -111,6 +98,8 @@ class NoiseParams:
     prnu : photo response non-uniformity, relative sigma of the per-pixel gain (fixed pattern).
     flicker_noise_v : rms of optional 1/f voltage noise between the two corner frequencies (0: off).
     """
+
+    TABLE = "noise"
 
     shot_noise: bool = True
     read_noise_v: float = 0.0
@@ -124,23 +113,20 @@ class NoiseParams:
     def __post_init__(self):
         n = type(self).__name__
         if not isinstance(self.shot_noise, bool):
-            raise ValueError(f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
+            raise FieldError("shot_noise", f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
         for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "prnu", "flicker_noise_v"):
             _check(n, name, getattr(self, name), nonnegative=True)
         _check(n, "prnu", self.prnu, nonnegative=True, upper=0.5)
         _check(n, "flicker_noise_low_hz", self.flicker_noise_low_hz, positive=True)
         _check(n, "flicker_noise_high_hz", self.flicker_noise_high_hz, positive=True)
         if self.flicker_noise_high_hz <= self.flicker_noise_low_hz:
-            raise ValueError(f"{n}.flicker_noise_high_hz must exceed flicker_noise_low_hz, "
+            raise FieldError("flicker_noise_high_hz", f"{n}.flicker_noise_high_hz must exceed flicker_noise_low_hz, "
                              f"got {self.flicker_noise_high_hz!r} <= {self.flicker_noise_low_hz!r}")
 
-    @classmethod
-    def from_table(cls, table: dict, *, source=None, where="noise"):
-        return _from_table(cls, table, source=source, where=where)
 
 
 @dataclass(frozen=True)
-class EventParams:
+class EventParams(FromTable):
     """Event-circuit parameters used by the event emulators.
 
     Parameters
@@ -150,6 +136,8 @@ class EventParams:
     refractory_s : dead time after an event.
     leak_rate_hz : mean rate of leak (ON) events per pixel; leak_rate_spread its relative sigma.
     """
+
+    TABLE = "events"
 
     threshold_on_ln: float = 0.2
     threshold_off_ln: float = 0.2
@@ -165,6 +153,3 @@ class EventParams:
         for name in ("threshold_mismatch_ln", "refractory_s", "leak_rate_hz", "leak_rate_spread"):
             _check(n, name, getattr(self, name), nonnegative=True)
 
-    @classmethod
-    def from_table(cls, table: dict, *, source=None, where="events"):
-        return _from_table(cls, table, source=source, where=where)

@@ -10,16 +10,14 @@ responsivity for ``bandwidth_reference_spectrum``.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+from gevsim.config import read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.pixel.aps import ApsParams
 from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams
 
-PRESETS_DIR = Path(__file__).resolve().parents[2] / "noise"
-_PACKAGED = Path(__file__).resolve().parents[1] / "_noise"
 TABLES = ("sensor", "photoreceptor", "noise", "events", "aps")
 SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_factor",
                "bandwidth_reference_spectrum")
@@ -54,11 +52,8 @@ class SensorPreset:
 
 
 def preset_names() -> dict[str, Path]:
-    found = {}
-    for folder in (_PACKAGED, PRESETS_DIR):
-        if folder.is_dir():
-            found.update({p.stem: p for p in sorted(folder.glob("*.toml"))})
-    return found
+    """Names of the shipped sensor presets and their files."""
+    return resource_tomls("noise")
 
 
 def load_preset(name_or_path: str | Path) -> SensorPreset:
@@ -71,12 +66,7 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
                               f"presets: {', '.join(names)}")
         path = names[str(name_or_path)]
     src = str(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError("no such sensor preset file", source=src) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"malformed TOML: {exc}", source=src) from None
+    raw = read_toml(path, what="sensor preset file")
     check_keys(raw, TABLES, source=src, where="")
     for table in ("sensor", "photoreceptor", "noise", "events"):
         if not isinstance(raw.get(table), dict):

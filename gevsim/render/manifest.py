@@ -12,17 +12,15 @@ its tables key by key.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from gevsim.config import TomlReader, read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.illumination import Waveform, from_spec as waveform_from_spec
 
-SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
-_PACKAGED_SCENES = Path(__file__).resolve().parents[1] / "_scenes"
 
 TABLES = ("scene", "render", "sequence", "camera", "motion", "light_groups", "optics")
 SCENE_KEYS = ("name", "description", "builder", "options", "extends")
@@ -128,11 +126,7 @@ class SceneManifest:
 
 def builtin_scenes() -> dict[str, Path]:
     """Names of the built-in scenes and their manifest paths."""
-    found = {}
-    for folder in (_PACKAGED_SCENES, SCENES_DIR):
-        if folder.is_dir():
-            found.update({p.stem: p for p in sorted(folder.glob("*.toml"))})
-    return found
+    return resource_tomls("scenes")
 
 
 def resolve(scene: str | Path) -> Path:
@@ -151,12 +145,7 @@ def resolve(scene: str | Path) -> Path:
 
 
 def _read_toml(path: Path, chain: tuple[Path, ...] = ()) -> dict:
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError("no such scene manifest", source=str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"malformed TOML: {exc}", source=str(path)) from None
+    data = read_toml(path, what="scene manifest")
     base = data.get("scene", {}).get("extends")
     if base is None:
         return data
@@ -176,58 +165,11 @@ def _read_toml(path: Path, chain: tuple[Path, ...] = ()) -> dict:
     return merged
 
 
-class _Reader:
-    """Typed access to a TOML table with errors that name file and key."""
-
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, key: str, message: str):
-        raise ConfigError(message, source=self.source, key=key)
-
-    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, integer=False):
-        if key not in table:
-            if default is None:
-                self.fail(f"{where}.{key}", "missing")
-            return default
-        value = table[key]
-        kind = int if integer else (int, float)
-        if isinstance(value, bool) or not isinstance(value, kind) or not math.isfinite(value):
-            self.fail(f"{where}.{key}", f"expected a finite {'integer' if integer else 'number'}, got {value!r}")
-        if positive and value <= 0:
-            self.fail(f"{where}.{key}", f"must be > 0, got {value!r}")
-        if minimum is not None and value < minimum:
-            self.fail(f"{where}.{key}", f"must be >= {minimum}, got {value!r}")
-        return value
-
-    def vector(self, table: dict, key: str, where: str, default=None, *, n=3, nonnegative=False):
-        if key not in table:
-            if default is None:
-                self.fail(f"{where}.{key}", "missing")
-            return default
-        value = table[key]
-        if (
-            not isinstance(value, list)
-            or len(value) != n
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
-        ):
-            self.fail(f"{where}.{key}", f"expected {n} finite numbers, got {value!r}")
-        if nonnegative and any(v < 0 for v in value):
-            self.fail(f"{where}.{key}", f"must not be negative, got {value!r}")
-        return tuple(float(v) for v in value)
-
-    def table(self, data: dict, key: str, where: str = "") -> dict:
-        value = data.get(key, {})
-        if not isinstance(value, dict):
-            self.fail(f"{where}{key}", f"expected a table, got {value!r}")
-        return value
-
-
 def load(scene: str | Path) -> SceneManifest:
     """Load and validate a scene manifest (a path or a built-in scene name)."""
     path = resolve(scene)
     raw = _read_toml(path, (path.resolve(),))
-    r = _Reader(str(path))
+    r = TomlReader(str(path))
     check_keys(raw, TABLES, source=r.source, where="")
 
     sc = r.table(raw, "scene")
@@ -342,12 +284,12 @@ def load(scene: str | Path) -> SceneManifest:
     )
 
 
-def _check_times(times, r: _Reader, where: str) -> None:
+def _check_times(times, r: TomlReader, where: str) -> None:
     if any(b <= a for a, b in zip(times, times[1:])):
         r.fail(where, f"keyframe times must increase strictly, got {times}")
 
 
-def _light_group(name: str, spec: dict, r: _Reader) -> LightGroup:
+def _light_group(name: str, spec: dict, r: TomlReader) -> LightGroup:
     where = f"light_groups.{name}"
     if not isinstance(spec, dict):
         r.fail(where, f"expected a table, got {spec!r}")

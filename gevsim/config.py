@@ -1,0 +1,113 @@
+"""Reading TOML configuration: files, typed values, and the folders of shipped
+resources (``scenes/``, ``noise/``). Every error names the file and the key."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import fields
+from pathlib import Path
+
+from gevsim.errors import ConfigError, check_keys
+
+_REPO = Path(__file__).resolve().parents[1]
+_PACKAGE = Path(__file__).resolve().parent
+
+
+def resource_tomls(kind: str) -> dict[str, Path]:
+    """The TOML files of a shipped resource folder (``scenes`` or ``noise``), by stem.
+
+    Looks in the source tree (``<repo>/<kind>``) and in an installed wheel
+    (``gevsim/_<kind>``).
+    """
+    found = {}
+    for folder in (_PACKAGE / f"_{kind}", _REPO / kind):
+        if folder.is_dir():
+            found.update({p.stem: p for p in sorted(folder.glob("*.toml"))})
+    return found
+
+
+class FieldError(ValueError):
+    """A bad dataclass field value; ``field`` names it so config errors can name the key."""
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        super().__init__(message)
+
+
+class FromTable:
+    """Mixin for parameter dataclasses: build one from a TOML table ``[TABLE]``.
+
+    Validation in ``__post_init__`` raises :class:`FieldError`; here it becomes a
+    :class:`ConfigError` naming the file and ``TABLE.field``.
+    """
+
+    TABLE = ""
+
+    @classmethod
+    def from_table(cls, table: dict, *, source: str | None = None, where: str | None = None):
+        where = cls.TABLE if where is None else where
+        if not isinstance(table, dict):
+            raise ConfigError(f"expected a table, got {table!r}", source=source, key=where)
+        check_keys(table, [f.name for f in fields(cls)], source=source, where=where)
+        try:
+            return cls(**table)
+        except FieldError as err:
+            raise ConfigError(str(err), source=source, key=f"{where}.{err.field}" if where else err.field) from None
+
+
+def read_toml(path: Path, *, what: str) -> dict:
+    """Parse a TOML file; a missing or malformed file is a :class:`ConfigError`."""
+    try:
+        return tomllib.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"no such {what}", source=str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"malformed TOML: {exc}", source=str(path)) from None
+
+
+class TomlReader:
+    """Typed access to a TOML table with errors that name file and key."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, key: str, message: str):
+        raise ConfigError(message, source=self.source, key=key)
+
+    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, integer=False):
+        if key not in table:
+            if default is None:
+                self.fail(f"{where}.{key}", "missing")
+            return default
+        value = table[key]
+        kind = int if integer else (int, float)
+        if isinstance(value, bool) or not isinstance(value, kind) or not math.isfinite(value):
+            self.fail(f"{where}.{key}", f"expected a finite {'integer' if integer else 'number'}, got {value!r}")
+        if positive and value <= 0:
+            self.fail(f"{where}.{key}", f"must be > 0, got {value!r}")
+        if minimum is not None and value < minimum:
+            self.fail(f"{where}.{key}", f"must be >= {minimum}, got {value!r}")
+        return value
+
+    def vector(self, table: dict, key: str, where: str, default=None, *, n=3, nonnegative=False):
+        if key not in table:
+            if default is None:
+                self.fail(f"{where}.{key}", "missing")
+            return default
+        value = table[key]
+        if (
+            not isinstance(value, list)
+            or len(value) != n
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+        ):
+            self.fail(f"{where}.{key}", f"expected {n} finite numbers, got {value!r}")
+        if nonnegative and any(v < 0 for v in value):
+            self.fail(f"{where}.{key}", f"must not be negative, got {value!r}")
+        return tuple(float(v) for v in value)
+
+    def table(self, data: dict, key: str, where: str = "") -> dict:
+        value = data.get(key, {})
+        if not isinstance(value, dict):
+            self.fail(f"{where}{key}", f"expected a table, got {value!r}")
+        return value
