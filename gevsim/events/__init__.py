@@ -1,0 +1,34 @@
+"""Event emulators: brightness (DVS), gradient (Lehtonen et al.), center-surround."""
+
+from gevsim.events.brightness import BrightnessEmulator, per_pixel_thresholds
+from gevsim.events.gradient import (
+    LN_THRESHOLDS,
+    PAPER_THRESHOLDS,
+    GradientEmulator,
+    decode,
+    encode,
+    gradients,
+    ternary,
+    threshold_matrix,
+)
+from gevsim.events.types import AXIS_X, AXIS_Y, BRIGHTNESS_DTYPE, GRADIENT_DTYPE, check_events, empty, is_gradient
+
+__all__ = [
+    "AXIS_X",
+    "AXIS_Y",
+    "BRIGHTNESS_DTYPE",
+    "BrightnessEmulator",
+    "GRADIENT_DTYPE",
+    "GradientEmulator",
+    "LN_THRESHOLDS",
+    "PAPER_THRESHOLDS",
+    "decode",
+    "encode",
+    "gradients",
+    "ternary",
+    "threshold_matrix",
+    "check_events",
+    "empty",
+    "is_gradient",
+    "per_pixel_thresholds",
+]

@@ -1,0 +1,178 @@
+"""Compiled inner loops of the event emulators (numba).
+
+Both kernels walk a chunk of T steps of a signal sampled at the step ends and
+linear in between, and write events into per-block buffers: block b owns
+``buf_*[b, :cap]``. Pixels are split into fixed blocks (rows for gradient
+events), so results do not depend on the number of threads. A full buffer
+sets ``count[b] = cap + 1``; the caller then retries the chunk with larger
+buffers from a copy of the state.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+BLOCK = 1024
+MAX_EVENTS_PER_STEP = 4096  # per pixel; guards against a vanishing threshold
+
+#: Gradient event from (T_prev, T), rows T_prev = -1, 0, 1, columns T = -1, 0, 1 (Lehtonen et al., Table 1).
+EVENT_TABLE = np.array([[0, -1, 1], [-1, 0, 1], [-1, 1, 0]], dtype=np.int8)
+
+
+@njit(inline="always")
+def _push(b, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis, t_us, step, pix, p, axis):
+    n = count[b]
+    if n < cap:
+        buf_t[b, n] = t_us
+        buf_step[b, n] = step
+        buf_pix[b, n] = pix
+        buf_p[b, n] = p
+        buf_axis[b, n] = axis
+    count[b] = min(n + 1, cap + 1)
+
+
+@njit(parallel=True, cache=True)
+def brightness(v, t_start, t_end, ref, v_prev, last_t, th_on, th_off, leak, refractory,
+               buf_t, buf_step, buf_pix, buf_p, buf_axis, count):
+    """DVS: per pixel a memorised level ``ref``; an ON (OFF) event when the signal
+    rises (falls) by th_on (th_off) from it, at the linearly interpolated crossing
+    time, not sooner than ``refractory`` after the pixel's previous event; the
+    level is then reset to the signal. ``leak`` (ln/s) lowers the level over
+    time, producing leak (ON) events."""
+    T, P = v.shape
+    cap = buf_t.shape[1]
+    nblocks = (P + BLOCK - 1) // BLOCK
+    for b in prange(nblocks):
+        lo = b * BLOCK
+        hi = min(P, lo + BLOCK)
+        for t in range(T):
+            ta = t_start[t]
+            dt = t_end[t] - ta
+            for p in range(lo, hi):
+                v0 = v_prev[p]
+                v1 = np.float64(v[t, p])
+                k = (v1 - v0) + leak[p] * dt  # slope of d = signal - level over the step (per unit s)
+                d = v0 - ref[p]
+                s = 0.0
+                n = 0
+                while n < MAX_EVENTS_PER_STEP:
+                    on, off = th_on[p], th_off[p]
+                    if d >= on or d <= -off:
+                        cross = s
+                    elif k > 0.0:
+                        cross = s + (on - d) / k
+                    elif k < 0.0:
+                        cross = s + (-off - d) / k
+                    else:
+                        break
+                    if cross > 1.0:
+                        break
+                    ready = (last_t[p] + refractory - ta) / dt if refractory > 0.0 else cross
+                    se = max(cross, ready)
+                    if se > 1.0:
+                        break
+                    de = d + k * (se - s)
+                    if de >= on:
+                        pol = 1
+                    elif de <= -off:
+                        pol = -1
+                    else:
+                        break  # fell back inside the thresholds while the pixel was refractory
+                    te = ta + se * dt
+                    _push(b, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
+                          np.int64(math.floor(te * 1e6 + 0.5)), t, p, pol, 0)
+                    last_t[p] = te
+                    d = 0.0
+                    s = se
+                    n += 1
+                d += k * (1.0 - s)
+                ref[p] = v1 - d
+                v_prev[p] = v1
+    return count
+
+
+@njit(inline="always")
+def _ternary(g, theta):
+    if g >= theta:
+        return 1
+    if g <= -theta:
+        return -1
+    return 0
+
+
+@njit(inline="always")
+def _crossing(g0, g1, t_prev, t_new, theta):
+    """Fraction of the step at which g crossed the threshold that makes t_new."""
+    if t_new == 1:
+        level = theta
+    elif t_new == -1:
+        level = -theta
+    elif t_prev == 1:
+        level = theta
+    else:
+        level = -theta
+    if g1 == g0:
+        return 1.0
+    s = (level - g0) / (g1 - g0)
+    return min(max(s, 0.0), 1.0)
+
+
+@njit(parallel=True, cache=True)
+def gradient(v, t_start, t_end, g_prev, tern, theta, rc, interpolate, table,
+             buf_t, buf_step, buf_pix, buf_p, buf_axis, count):
+    """Gradient events (Lehtonen et al.): for each comparator (axis a, pixel y, x)
+    G_X = v[y, x+1] - v[y, x], G_Y = v[y+1, x] - v[y, x] (with resolution
+    compression ``rc`` the mean over the pair starting at even x resp. even y,
+    one comparator per pair); ternary state T = sgn(G) if |G| >= theta else 0;
+    an event ``table[T_prev + 1, T + 1]`` whenever T changes. g_prev, tern and
+    theta are (2, H, W); v is (T, H, W)."""
+    T, H, W = v.shape
+    cap = buf_t.shape[1]
+    for y in prange(H):
+        for t in range(T):
+            ta = t_start[t]
+            dt = t_end[t] - ta
+            for axis in range(2):
+                for x in range(W):
+                    if axis == 0:
+                        if x == W - 1 or (rc and x % 2 == 1):
+                            continue
+                        g1 = np.float64(v[t, y, x + 1]) - np.float64(v[t, y, x])
+                        if rc:
+                            g2 = np.float64(v[t, y, x + 2]) - np.float64(v[t, y, x + 1]) if x + 2 < W else 0.0
+                            g1 = 0.5 * (g1 + g2)
+                    else:
+                        if y == H - 1 or (rc and y % 2 == 1):
+                            continue
+                        g1 = np.float64(v[t, y + 1, x]) - np.float64(v[t, y, x])
+                        if rc:
+                            g2 = np.float64(v[t, y + 2, x]) - np.float64(v[t, y + 1, x]) if y + 2 < H else 0.0
+                            g1 = 0.5 * (g1 + g2)
+                    th = theta[axis, y, x]
+                    t_old = tern[axis, y, x]
+                    t_new = _ternary(g1, th)
+                    if t_new != t_old:
+                        s = _crossing(g_prev[axis, y, x], g1, t_old, t_new, th) if interpolate else 1.0
+                        te = ta + s * dt
+                        _push(y, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
+                              np.int64(math.floor(te * 1e6 + 0.5)), t, y * W + x,
+                              table[t_old + 1, t_new + 1], axis)
+                        tern[axis, y, x] = t_new
+                    g_prev[axis, y, x] = g1
+    return count
+
+
+@njit(cache=True)
+def apply_gradient_events(state, axis, y, x, p, table):
+    """Apply events in order to a ternary state (2, H, W): the inverse of ``table``."""
+    for i in range(len(p)):
+        a, yy, xx = axis[i], y[i], x[i]
+        row = state[a, yy, xx] + 1
+        for col in range(3):
+            if table[row, col] == p[i]:
+                state[a, yy, xx] = col - 1
+                break
+    return state

@@ -1,0 +1,91 @@
+"""Shared driving of the event kernels: input checks, state, buffers, sorting.
+
+Events of a chunk are ordered by (timestamp, step, pixel, then the kernel's
+order for one pixel): this order is the same whether a sequence is processed
+in one call or in chunks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class SampledSignal:
+    """Time bookkeeping for an emulator fed with samples at increasing times.
+
+    The first sample initialises the state (no events); each later sample ends
+    a step that began at the previous one.
+    """
+
+    def __init__(self, shape):
+        self.shape = tuple(int(s) for s in shape)
+        self.t_s: float | None = None
+
+    def steps(self, signal, t_s, *, name: str = "signal"):
+        """Validate a chunk; return (signal (T, H, W), step starts, step ends, first-sample flag)."""
+        v = np.asarray(signal)
+        t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+        if v.ndim != 3 or v.shape[1:] != self.shape:
+            raise ValueError(f"{name} must have shape (T, {self.shape[0]}, {self.shape[1]}), got {v.shape}")
+        if len(t) != v.shape[0]:
+            raise ValueError(f"t_s has {len(t)} times but {name} has {v.shape[0]} samples")
+        if v.dtype.kind != "f":
+            v = v.astype(np.float64)
+        if not np.all(np.isfinite(t)):
+            raise ValueError("t_s must be finite")
+        if v.size and not np.isfinite(v).all():
+            raise ValueError(f"{name} must be finite: {int((~np.isfinite(v)).sum())} values are NaN or infinite")
+        prev = np.concatenate([[self.t_s if self.t_s is not None else -np.inf], t[:-1]]) if len(t) else t
+        if np.any(t <= prev):
+            k = int(np.argmax(t <= prev))
+            raise ValueError(f"time must increase strictly: sample {k} at t = {t[k]!r} s follows {prev[k]!r} s")
+        first = self.t_s is None
+        return np.ascontiguousarray(v), prev, t, first
+
+
+def sort_order(t_us: np.ndarray, step: np.ndarray, pix: np.ndarray) -> np.ndarray:
+    """Stable order by (timestamp, step, pixel): one composite int64 key when it fits
+    (2.6x faster than ``np.lexsort`` on 1.3 M events), else ``np.lexsort``."""
+    if len(t_us) == 0:
+        return np.zeros(0, np.int64)
+    n_pix = int(pix.max()) + 1
+    n_step = int(step.max()) + 1
+    span = int(t_us.max() - t_us.min()) + 1
+    if span * n_step * n_pix < 2**62:
+        key = (t_us - t_us.min()) * (n_step * n_pix) + step.astype(np.int64) * n_pix + pix
+        return np.argsort(key, kind="stable")
+    return np.lexsort((pix, step, t_us))
+
+
+def run_with_buffers(call, state: tuple, *, nblocks: int, estimate: int, dtype, width: int):
+    """Run ``call(state, buf_t, buf_step, buf_pix, buf_p, buf_axis, count)`` on copies of
+    the ``state`` arrays (the kernel mutates them), growing the buffers until nothing
+    overflows; return (events sorted, new state)."""
+    cap = max(256, int(estimate))
+    while True:
+        args = tuple(a.copy() for a in state)
+        buf_t = np.empty((nblocks, cap), np.int64)
+        buf_step = np.empty((nblocks, cap), np.int32)
+        buf_pix = np.empty((nblocks, cap), np.int32)
+        buf_p = np.empty((nblocks, cap), np.int8)
+        buf_axis = np.empty((nblocks, cap), np.uint8)
+        count = np.zeros(nblocks, np.int64)
+        call(args, buf_t, buf_step, buf_pix, buf_p, buf_axis, count)
+        if count.max(initial=0) <= cap:
+            break
+        cap = int(count.max()) * 4
+    mask = np.arange(cap)[None, :] < count[:, None]
+    t, step, pix = buf_t[mask], buf_step[mask], buf_pix[mask]
+    order = sort_order(t, step, pix)
+    events = np.zeros(len(t), dtype=dtype)
+    pix = pix[order]
+    events["t"] = t[order]
+    events["x"] = pix % width
+    events["y"] = pix // width
+    p = buf_p[mask][order]
+    if "axis" in dtype.names:
+        events["p"] = p
+        events["axis"] = buf_axis[mask][order]
+    else:
+        events["p"] = p > 0
+    return events, args

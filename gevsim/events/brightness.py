@@ -1,0 +1,85 @@
+"""Brightness events (DVS): temporal contrast of the photoreceptor output.
+
+Per pixel a memorised level; an ON (OFF) event when the signal rises (falls)
+by the ON (OFF) threshold from it. Thresholds carry per-pixel Gaussian
+mismatch, events respect a refractory period, several may occur in one step,
+and timestamps are the linearly interpolated crossing times inside the step
+(Lichtsteiner, Posch & Delbruck 2008). Leak events come from the memorised
+level drifting down at ``leak_rate_hz`` thresholds per second (with per-pixel
+spread), as in v2e (Hu, Liu & Delbruck 2021).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gevsim.events import _kernels
+from gevsim.events._runner import SampledSignal, run_with_buffers
+from gevsim.events.types import BRIGHTNESS_DTYPE, empty
+from gevsim.pixel.params import EventParams
+
+
+def per_pixel_thresholds(shape, params: EventParams, *, rng: np.random.Generator):
+    """ON and OFF thresholds (ln units) with independent Gaussian mismatch, floored at 5 % of nominal."""
+    sigma = params.threshold_mismatch_ln
+    on = params.threshold_on_ln + sigma * rng.standard_normal(shape)
+    off = params.threshold_off_ln + sigma * rng.standard_normal(shape)
+    return np.maximum(on, 0.05 * params.threshold_on_ln), np.maximum(off, 0.05 * params.threshold_off_ln)
+
+
+class BrightnessEmulator:
+    """DVS emulator over an (H, W) pixel array; state is kept across chunks.
+
+    Parameters
+    ----------
+    shape : (H, W).
+    params : thresholds, mismatch, refractory period and leak (a preset's ``events``).
+    rng : draws the fixed patterns (threshold mismatch, leak rates).
+    """
+
+    dtype = BRIGHTNESS_DTYPE
+
+    def __init__(self, shape, params: EventParams, *, rng: np.random.Generator):
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        self.clock = SampledSignal(shape)
+        self.shape = self.clock.shape
+        self.params = params
+        on, off = per_pixel_thresholds(self.shape, params, rng=rng)
+        self.threshold_on_ln = on.ravel()
+        self.threshold_off_ln = off.ravel()
+        rate = params.leak_rate_hz * np.maximum(0.0, 1.0 + params.leak_rate_spread * rng.standard_normal(self.shape))
+        self.leak_ln_per_s = (rate.ravel() * self.threshold_on_ln).astype(np.float64)
+        n = self.threshold_on_ln.size
+        self.ref = np.zeros(n)
+        self.v_prev = np.zeros(n)
+        self.last_t = np.full(n, -np.inf)
+
+    def process(self, signal, t_s) -> np.ndarray:
+        """Events (sorted by time) from samples ``signal`` (T, H, W) in ln units at times ``t_s`` (T,).
+
+        The signal is linear between samples; the very first sample only sets
+        the memorised levels.
+        """
+        v, t_start, t_end, first = self.clock.steps(signal, t_s, name="signal")
+        if len(t_end) == 0:
+            return empty(self.dtype)
+        ref, v_prev, last_t = self.ref, self.v_prev, self.last_t
+        if first:
+            ref = v[0].reshape(-1).astype(np.float64)
+            v_prev = ref.copy()
+            v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
+        flat = v.reshape(len(t_end), self.shape[0] * self.shape[1])
+        p = self.params
+
+        def call(state, *bufs):
+            _kernels.brightness(flat, t_start, t_end, *state, self.threshold_on_ln, self.threshold_off_ln,
+                                self.leak_ln_per_s, p.refractory_s, *bufs)
+
+        nblocks = (flat.shape[1] + _kernels.BLOCK - 1) // _kernels.BLOCK
+        events, (ref, v_prev, last_t) = run_with_buffers(
+            call, (ref, v_prev, last_t), nblocks=nblocks, estimate=max(1, len(t_end)) * _kernels.BLOCK // 8,
+            dtype=self.dtype, width=self.shape[1])
+        self.ref, self.v_prev, self.last_t = ref, v_prev, last_t
+        self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
+        return events

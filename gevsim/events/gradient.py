@@ -1,0 +1,163 @@
+"""Gradient events (Lehtonen et al., "Gradient events: improved acquisition of
+visual information in event cameras").
+
+G_X(x, y) = I(x+1, y) - I(x, y) and G_Y(x, y) = I(x, y+1) - I(x, y) (0 in the
+last column/row); threshold matrix Theta(x, y) = t_i with i = (x + y) mod n;
+ternary gradient T = sgn(G) where |G| >= Theta, else 0; a gradient event is
+``EVENT_TABLE[T_prev + 1, T + 1]`` whenever T changes, which is lossless: T is
+recovered from T_prev and the event (:func:`decode`). With resolution
+compression (RC) G_X is averaged over horizontal pairs (x even, x+1) and G_Y
+over vertical pairs, with one comparator per pair at the even position, using
+the threshold at that position.
+
+In the physical emulator I is the photoreceptor output in ln units and the
+thresholds are ln-unit values; in frame mode I is a [0, 1] grayscale frame and
+the paper's thresholds {4, 8, 16}/255 apply.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from gevsim.events import _kernels
+from gevsim.events._kernels import EVENT_TABLE
+from gevsim.events._runner import SampledSignal, run_with_buffers
+from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, empty
+
+PAPER_THRESHOLDS = (4 / 255, 8 / 255, 16 / 255)
+#: Default ln-unit thresholds of the physical emulator: the paper's 1:2:4 ratios, the largest
+#: equal to the usual DVS contrast threshold of 0.2 (assumed).
+LN_THRESHOLDS = (0.05, 0.1, 0.2)
+
+
+def threshold_matrix(shape, thresholds: Sequence[float] = PAPER_THRESHOLDS) -> np.ndarray:
+    """Theta(x, y) = thresholds[(x + y) mod n], shape (H, W)."""
+    t = np.asarray(thresholds, dtype=np.float64)
+    if t.ndim != 1 or len(t) == 0 or not np.all(np.isfinite(t)) or np.any(t <= 0):
+        raise ValueError(f"thresholds must be a non-empty list of positive numbers, got {list(thresholds)!r}")
+    h, w = shape
+    y, x = np.mgrid[0:h, 0:w]
+    return t[(x + y) % len(t)]
+
+
+def gradients(image: np.ndarray, *, rc: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """G_X and G_Y of an (H, W) image (last column/row 0); with ``rc`` the pair means,
+    written to both members of each pair (the paper's Eqs. for G^RC)."""
+    img = np.asarray(image, dtype=np.float64)
+    gx = np.zeros_like(img)
+    gy = np.zeros_like(img)
+    gx[:, :-1] = img[:, 1:] - img[:, :-1]
+    gy[:-1, :] = img[1:, :] - img[:-1, :]
+    if rc:
+        _check_rc(img.shape)
+        gx[:, 0::2] = gx[:, 1::2] = 0.5 * (gx[:, 0::2] + gx[:, 1::2])
+        gy[0::2, :] = gy[1::2, :] = 0.5 * (gy[0::2, :] + gy[1::2, :])
+    return gx, gy
+
+
+def ternary(g: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """T = 0 where |G| < Theta, else sgn(G); int8."""
+    return np.where(np.abs(g) >= theta, np.sign(g), 0).astype(np.int8)
+
+
+def encode(t_prev: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Gradient events from previous and current ternary gradients (the paper's Table 1)."""
+    return EVENT_TABLE[np.asarray(t_prev, int) + 1, np.asarray(t_new, int) + 1]
+
+
+def decode(events: np.ndarray, initial: np.ndarray, *, t_us: int | None = None) -> np.ndarray:
+    """Ternary state (2, H, W) after applying ``events`` with timestamps <= ``t_us``
+    (all when None) to the ``initial`` state (2, H, W)."""
+    check_events(events, name="events")
+    state = np.array(initial, dtype=np.int8, copy=True)
+    if state.ndim != 3 or state.shape[0] != 2:
+        raise ValueError(f"initial state must have shape (2, H, W), got {state.shape}")
+    ev = events if t_us is None else events[events["t"] <= t_us]
+    if len(ev) and (ev["x"].max() >= state.shape[2] or ev["y"].max() >= state.shape[1]):
+        raise ValueError("events lie outside the state's (H, W)")
+    if len(ev) and np.any(ev["p"] == 0):
+        raise ValueError("gradient events must have p = +1 or -1")
+    # Events are applied in order; a comparator may change several times.
+    return _kernels.apply_gradient_events(state, ev["axis"], ev["y"], ev["x"], ev["p"], EVENT_TABLE)
+
+
+def _check_rc(shape) -> None:
+    if shape[0] % 2 or shape[1] % 2:
+        raise ValueError(f"resolution compression needs even height and width, got {shape[0]}x{shape[1]}")
+
+
+class GradientEmulator:
+    """Gradient-event emulator over (H, W) pixels, state kept across chunks.
+
+    Parameters
+    ----------
+    shape : (H, W).
+    thresholds : the threshold set t_0 .. t_{n-1}, assigned by (x + y) mod n (or pass ``theta``).
+    theta : an explicit (H, W) threshold matrix instead.
+    mismatch_sigma : per-comparator Gaussian threshold mismatch (same units), drawn with ``rng``.
+    rc : resolution compression (H and W even).
+    interpolate : timestamps at the interpolated crossing inside a step (physical mode); False
+        stamps events with the sample time (frame mode, as in the paper).
+    """
+
+    dtype = GRADIENT_DTYPE
+
+    def __init__(self, shape, *, thresholds=LN_THRESHOLDS, theta=None, mismatch_sigma: float = 0.0,
+                 rc: bool = False, interpolate: bool = True, rng: np.random.Generator | None = None):
+        self.clock = SampledSignal(shape)
+        self.shape = self.clock.shape
+        if rc:
+            _check_rc(self.shape)
+        base = threshold_matrix(self.shape, thresholds) if theta is None else np.asarray(theta, np.float64)
+        if base.shape != self.shape:
+            raise ValueError(f"theta must have shape {self.shape}, got {base.shape}")
+        if not np.all(base > 0):
+            raise ValueError("theta must be positive everywhere")
+        theta2 = np.stack([base, base])
+        if mismatch_sigma:
+            if not isinstance(rng, np.random.Generator):
+                raise TypeError("threshold mismatch needs rng=numpy.random.Generator")
+            theta2 = np.maximum(theta2 + mismatch_sigma * rng.standard_normal(theta2.shape), 0.05 * theta2)
+        self.theta = theta2  # (2, H, W): comparators of the X and Y axes
+        self.rc = bool(rc)
+        self.interpolate = bool(interpolate)
+        self.g_prev = np.zeros((2,) + self.shape)
+        self.state = np.zeros((2,) + self.shape, np.int8)
+
+    def ternary_of(self, image: np.ndarray) -> np.ndarray:
+        """Ternary gradients (2, H, W) of one image with this emulator's thresholds."""
+        gx, gy = gradients(image, rc=self.rc)
+        t = np.stack([ternary(gx, self.theta[AXIS_X]), ternary(gy, self.theta[AXIS_Y])])
+        if self.rc:  # one comparator per pair, at the even position; the odd ones hold 0
+            t[AXIS_X, :, 1::2] = 0
+            t[AXIS_Y, 1::2, :] = 0
+        return t
+
+    def process(self, signal, t_s) -> np.ndarray:
+        """Events sorted by time from samples ``signal`` (T, H, W) at times ``t_s``.
+
+        The first sample sets the initial ternary state (no events); see
+        :attr:`initial_state` to decode from it.
+        """
+        v, t_start, t_end, first = self.clock.steps(signal, t_s, name="signal")
+        if len(t_end) == 0:
+            return empty(self.dtype)
+        g_prev, state = self.g_prev, self.state
+        if first:
+            gx, gy = gradients(v[0], rc=self.rc)
+            g_prev = np.stack([gx, gy])
+            state = self.ternary_of(v[0])
+            self.initial_state = state.copy()
+            v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
+
+        def call(st, *bufs):
+            _kernels.gradient(v, t_start, t_end, *st, self.theta, self.rc, self.interpolate, EVENT_TABLE, *bufs)
+
+        events, (g_prev, state) = run_with_buffers(
+            call, (g_prev, state), nblocks=self.shape[0], estimate=max(1, len(t_end)) * self.shape[1] // 4,
+            dtype=self.dtype, width=self.shape[1])
+        self.g_prev, self.state = g_prev, state
+        self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
+        return events
