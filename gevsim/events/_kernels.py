@@ -60,27 +60,29 @@ def brightness(v, t_start, t_end, ref, v_prev, last_t, th_on, th_off, leak, refr
                 n = 0
                 while n < MAX_EVENTS_PER_STEP:
                     on, off = th_on[p], th_off[p]
-                    if d >= on or d <= -off:
-                        cross = s
+                    if d >= on:
+                        cross, pol = s, 1
+                    elif d <= -off:
+                        cross, pol = s, -1
                     elif k > 0.0:
-                        cross = s + (on - d) / k
+                        cross, pol = s + (on - d) / k, 1
                     elif k < 0.0:
-                        cross = s + (-off - d) / k
+                        cross, pol = s + (-off - d) / k, -1
                     else:
                         break
                     if cross > 1.0:
                         break
-                    ready = (last_t[p] + refractory - ta) / dt if refractory > 0.0 else cross
-                    se = max(cross, ready)
-                    if se > 1.0:
-                        break
-                    de = d + k * (se - s)
-                    if de >= on:
-                        pol = 1
-                    elif de <= -off:
-                        pol = -1
-                    else:
-                        break  # fell back inside the thresholds while the pixel was refractory
+                    se = cross
+                    if refractory > 0.0:
+                        ready = (last_t[p] + refractory - ta) / dt
+                        if ready > se:
+                            # Refractory: fire when it ends, if still beyond the threshold.
+                            se = ready
+                            if se > 1.0:
+                                break
+                            de = d + k * (se - s)
+                            if (pol == 1 and de < on) or (pol == -1 and de > -off):
+                                break
                     te = ta + se * dt
                     _push(b, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
                           np.int64(math.floor(te * 1e6 + 0.5)), t, p, pol, 0)
