@@ -1,6 +1,7 @@
 """Event emulators: brightness (DVS), gradient (Lehtonen et al.), center-surround."""
 
 from gevsim.events.brightness import BrightnessEmulator, per_pixel_thresholds
+from gevsim.events.center_surround import CenterSurroundEmulator
 from gevsim.events.gradient import (
     LN_THRESHOLDS,
     PAPER_THRESHOLDS,
@@ -18,6 +19,7 @@ __all__ = [
     "AXIS_Y",
     "BRIGHTNESS_DTYPE",
     "BrightnessEmulator",
+    "CenterSurroundEmulator",
     "GRADIENT_DTYPE",
     "GradientEmulator",
     "LN_THRESHOLDS",

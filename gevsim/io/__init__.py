@@ -1,6 +1,20 @@
-"""File formats: OpenEXR images, atomic writes (HDF5 and EVREAL come later)."""
+"""File formats: HDF5 event files, EVREAL folders, text events, OpenEXR images, atomic writes."""
 
 from gevsim.io.atomic import atomic_path, atomic_write_text
+from gevsim.io.evreal import export_evreal, import_evreal
 from gevsim.io.exr import read_exr, write_exr
+from gevsim.io.hdf5 import EventReader, EventWriter
+from gevsim.io.text import export_text, import_text
 
-__all__ = ["atomic_path", "atomic_write_text", "read_exr", "write_exr"]
+__all__ = [
+    "EventReader",
+    "EventWriter",
+    "atomic_path",
+    "atomic_write_text",
+    "export_evreal",
+    "export_text",
+    "import_evreal",
+    "import_text",
+    "read_exr",
+    "write_exr",
+]

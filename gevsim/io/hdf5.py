@@ -1,0 +1,366 @@
+"""DSEC-like HDF5 event files (DESIGN.md, Data contracts).
+
+Layout (format ``"gevsim-events-1"``)::
+
+    /                      attrs: width, height, config_toml, seed, gevsim_version,
+                                  format, complete, t_end_us, extra attributes
+    /events/{x,y,t,p}      brightness events, one 1-D dataset per field
+    /events/ms_to_idx      ms_to_idx[k] = index of the first event with t >= k*1000 us
+    /gradient_events/{x,y,t,p,axis}, /gradient_events/ms_to_idx
+    /<stream>/...          any other named stream, same layout
+    /frames/<name>/images  (N, H, W[, C]) and /frames/<name>/t (N,) int64 us
+
+``ms_to_idx`` follows DSEC (Gehrig et al., RA-L 2021) but lives in each event
+group; every stream's table has ``ceil(t_end_us / 1000) + 1`` entries. Timestamps
+must be non-negative. The file is written under a temporary name beside the
+target and renamed onto it only by a clean :meth:`EventWriter.close`, so a file
+at the target path always carries ``complete = True``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import tempfile
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from gevsim import __version__
+from gevsim.errors import ConfigError, suggest
+from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE
+
+log = logging.getLogger(__name__)
+
+FORMAT = "gevsim-events-1"
+CHUNK = 2**16
+_STANDARD = {"events": BRIGHTNESS_DTYPE, "gradient_events": GRADIENT_DTYPE}
+_RESERVED_ATTRS = {"width", "height", "config_toml", "seed", "gevsim_version", "format", "complete", "t_end_us"}
+
+
+class _Stream:
+    """Write-side state of one event stream: counts, last time, ms_to_idx progress."""
+
+    def __init__(self, group: h5py.Group, dtype: np.dtype, compression: str):
+        self.dtype, self.n, self.last_t, self.n_ms = dtype, 0, None, 0
+        group.attrs["kind"] = "events"
+        group.attrs["fields"] = list(dtype.names)
+        self.fields = {
+            name: group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype[name],
+                                       chunks=(CHUNK,), compression=compression)
+            for name in dtype.names
+        }
+        self.ms = group.create_dataset("ms_to_idx", shape=(0,), maxshape=(None,), dtype=np.int64,
+                                       chunks=(4096,), compression=compression)
+
+    def extend_ms(self, values: np.ndarray) -> None:
+        self.ms.resize((self.n_ms + len(values),))
+        self.ms[self.n_ms:] = values
+        self.n_ms += len(values)
+
+
+class EventWriter:
+    """Append event streams, frames and arrays to a gevsim HDF5 file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Target file; it appears only after a clean :meth:`close`.
+    width, height : int
+        Sensor size in pixels.
+    config_toml : str
+        The resolved configuration as TOML text.
+    seed : int
+        Seed of the run.
+    compression : {"gzip", "lzf"}
+        Filter for every dataset (both ship with h5py; no plugin needed to read).
+    extra_attrs : dict, optional
+        More root attributes.
+    """
+
+    def __init__(self, path, *, width: int, height: int, config_toml: str, seed: int,
+                 compression: str = "gzip", extra_attrs: dict | None = None):
+        if compression not in ("gzip", "lzf"):
+            raise ValueError(f"compression must be 'gzip' or 'lzf', got {compression!r}")
+        self.path = Path(path)
+        self.compression = compression
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+        os.close(fd)
+        self._tmp = Path(tmp)
+        self._streams: dict[str, _Stream] = {}
+        self._t_end_us: int | None = None
+        try:
+            self._file = h5py.File(self._tmp, "w")
+            attrs = self._file.attrs
+            attrs.update(width=int(width), height=int(height), config_toml=str(config_toml), seed=int(seed),
+                         gevsim_version=__version__, format=FORMAT)
+            for key in extra_attrs or {}:
+                if key in _RESERVED_ATTRS:
+                    raise ValueError(f"extra_attrs key {key!r} is reserved")
+            self.set_attrs("/", **(extra_attrs or {}))
+        except BaseException:
+            self.abort()
+            raise
+
+    # -- context manager -------------------------------------------------------------
+    def __enter__(self) -> EventWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+        return False
+
+    @property
+    def closed(self) -> bool:
+        return self._file is None or not self._file.id.valid
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise ValueError(f"{self.path}: writer is closed")
+
+    # -- events ------------------------------------------------------------------------
+    def append(self, stream: str, events: np.ndarray) -> None:
+        """Append a chunk of time-sorted events to ``stream`` (e.g. ``"events"``)."""
+        self._check_open()
+        if not isinstance(events, np.ndarray) or events.dtype.names is None or "t" not in events.dtype.names:
+            got = getattr(events, "dtype", type(events).__name__)
+            raise TypeError(f"stream {stream!r}: events must be a structured array with a 't' field, got {got}")
+        state = self._streams.get(stream) or self._create_stream(stream, events.dtype)
+        if events.dtype != state.dtype:
+            raise TypeError(f"stream {stream!r}: chunk dtype {events.dtype} differs from the stream's {state.dtype}")
+        t = np.asarray(events["t"], dtype=np.int64).ravel()
+        if len(t) == 0:
+            return
+        if t[0] < 0:
+            raise ValueError(f"stream {stream!r}: timestamps must be >= 0 us, got t={int(t[0])} us")
+        if state.last_t is not None and t[0] < state.last_t:
+            raise ValueError(f"stream {stream!r}: timestamps go back across appends: chunk starts at "
+                             f"t={int(t[0])} us but the previous chunk ended at t={state.last_t} us")
+        bad = np.flatnonzero(np.diff(t) < 0)
+        if bad.size:
+            i = int(bad[0])
+            raise ValueError(f"stream {stream!r}: timestamps must be non-decreasing, "
+                             f"got t[{i}]={int(t[i])} us then t[{i + 1}]={int(t[i + 1])} us")
+        n0, n1 = state.n, state.n + len(t)
+        for name, ds in state.fields.items():
+            ds.resize((n1,))
+            ds[n0:n1] = np.ascontiguousarray(events[name])
+        state.n, state.last_t = n1, int(t[-1])
+        k_last = state.last_t // 1000  # entries k <= k_last are now final
+        if k_last >= state.n_ms:
+            ks = np.arange(state.n_ms, k_last + 1, dtype=np.int64) * 1000
+            state.extend_ms(n0 + np.searchsorted(t, ks, side="left"))
+
+    def _create_stream(self, stream: str, dtype: np.dtype) -> _Stream:
+        if not isinstance(stream, str) or not stream or "/" in stream or stream == "frames":
+            raise ValueError(f"invalid stream name {stream!r}: a non-empty name without '/', not 'frames'")
+        if stream in _STANDARD and dtype != _STANDARD[stream]:
+            raise TypeError(f"stream {stream!r} must have dtype {_STANDARD[stream]}, got {dtype}")
+        if stream in self._file:
+            raise ValueError(f"{stream!r} already exists in the file and is not an event stream")
+        state = _Stream(self._file.create_group(stream), dtype, self.compression)
+        self._streams[stream] = state
+        return state
+
+    def set_end(self, t_end_us: int) -> None:
+        """Set the recording's end time; every ``ms_to_idx`` then covers [0, t_end_us]."""
+        self._t_end_us = int(t_end_us)
+
+    # -- frames, arrays, attributes -------------------------------------------------------
+    def append_frame(self, name: str, image: np.ndarray, t_us: int) -> None:
+        """Append an (H, W) or (H, W, C) image taken at ``t_us`` to ``/frames/<name>``."""
+        self._check_open()
+        image = np.asarray(image)
+        if image.ndim not in (2, 3):
+            raise ValueError(f"frame {name!r}: image must be (H, W) or (H, W, C), got shape {image.shape}")
+        group = self._file.require_group("frames")
+        if name not in group:
+            g = group.create_group(name)
+            g.create_dataset("images", shape=(0, *image.shape), maxshape=(None, *image.shape), dtype=image.dtype,
+                             chunks=(1, *image.shape), compression=self.compression)
+            g.create_dataset("t", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
+        images, t = group[name]["images"], group[name]["t"]
+        if image.shape != images.shape[1:] or image.dtype != images.dtype:
+            raise ValueError(f"frame {name!r}: got {image.shape} {image.dtype}, "
+                             f"earlier frames are {images.shape[1:]} {images.dtype}")
+        n = images.shape[0]
+        if n and int(t_us) < int(t[n - 1]):
+            raise ValueError(f"frame {name!r}: t={int(t_us)} us is before the previous frame's t={int(t[n - 1])} us")
+        images.resize((n + 1, *image.shape))
+        t.resize((n + 1,))
+        images[n], t[n] = image, int(t_us)
+
+    def write_array(self, path_in_file: str, array, attrs: dict | None = None) -> None:
+        """Store ``array`` as a dataset at ``path_in_file`` (e.g. ``"thresholds/on"``)."""
+        self._check_open()
+        if path_in_file in self._file:
+            raise ValueError(f"{path_in_file!r} already exists in {self.path}")
+        array = np.asarray(array)
+        opts = {"compression": self.compression} if array.ndim and array.size else {}
+        self._file.create_dataset(path_in_file, data=array, **opts)
+        self.set_attrs(path_in_file, **(attrs or {}))
+
+    def set_attrs(self, group_path: str, **attrs) -> None:
+        """Set attributes on a group (created if missing) or an existing dataset."""
+        self._check_open()
+        obj = self._file[group_path] if group_path in self._file else self._file.require_group(group_path)
+        for key, value in attrs.items():
+            if value is None or isinstance(value, dict):
+                raise TypeError(f"attribute {key!r} of {group_path!r}: cannot store {type(value).__name__} in HDF5")
+            obj.attrs[key] = value
+
+    # -- finishing -------------------------------------------------------------------
+    def close(self, t_end_us: int | None = None) -> None:
+        """Finalise ``ms_to_idx``, mark the file complete and rename it onto ``path``."""
+        if self.closed:
+            return
+        try:
+            self._finalise(self._t_end_us if t_end_us is None else int(t_end_us))
+            self._file.close()
+            os.replace(self._tmp, self.path)
+        except BaseException:
+            self.abort()
+            raise
+        log.debug("wrote %s", self.path)
+
+    def _finalise(self, t_end_us: int | None) -> None:
+        last = max((s.last_t for s in self._streams.values() if s.last_t is not None), default=0)
+        if t_end_us is None:
+            t_end_us = last
+        if t_end_us < last:
+            raise ValueError(f"{self.path}: t_end_us={t_end_us} is before the last event at t={last} us")
+        n_ms = -(-t_end_us // 1000) + 1  # k = 0 .. ceil(t_end_ms)
+        for state in self._streams.values():
+            if state.n_ms < n_ms:
+                state.extend_ms(np.full(n_ms - state.n_ms, state.n, dtype=np.int64))
+        self._file.attrs["t_end_us"] = np.int64(t_end_us)
+        self._file.attrs["complete"] = True
+
+    def abort(self) -> None:
+        """Close and delete the temporary file; ``path`` is left untouched."""
+        with contextlib.suppress(Exception):
+            if getattr(self, "_file", None) is not None and self._file.id.valid:
+                self._file.close()
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self._tmp)
+        self._file = None
+
+
+class EventReader:
+    """Read a complete gevsim HDF5 event file.
+
+    Raises
+    ------
+    ConfigError
+        If ``path`` is missing, not HDF5, not a gevsim file or incomplete.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        src = str(self.path)
+        if not self.path.is_file():
+            raise ConfigError("no such file", source=src)
+        try:
+            self._file = h5py.File(self.path, "r")
+        except OSError as exc:
+            raise ConfigError(f"not an HDF5 file ({exc})", source=src) from None
+        attrs = self._file.attrs
+        if attrs.get("format") != FORMAT:
+            self._file.close()
+            raise ConfigError(f"not a gevsim event file (format attribute {attrs.get('format')!r}, "
+                              f"expected {FORMAT!r})", source=src)
+        if not attrs.get("complete", False):
+            self._file.close()
+            raise ConfigError("incomplete gevsim event file: the writer did not finish", source=src)
+
+    def __enter__(self) -> EventReader:
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        self.close()
+        return False
+
+    def close(self) -> None:
+        self._file.close()
+
+    width = property(lambda self: int(self._file.attrs["width"]))
+    height = property(lambda self: int(self._file.attrs["height"]))
+    config_toml = property(lambda self: str(self._file.attrs["config_toml"]))
+    seed = property(lambda self: int(self._file.attrs["seed"]))
+    gevsim_version = property(lambda self: str(self._file.attrs["gevsim_version"]))
+    t_end_us = property(lambda self: int(self._file.attrs["t_end_us"]))
+
+    @property
+    def attrs(self) -> dict:
+        """All root attributes."""
+        return dict(self._file.attrs)
+
+    @property
+    def streams(self) -> tuple[str, ...]:
+        """Names of the event streams in the file (sorted)."""
+        return tuple(sorted(k for k, v in self._file.items()
+                            if isinstance(v, h5py.Group) and v.attrs.get("kind") == "events"))
+
+    @property
+    def frame_names(self) -> tuple[str, ...]:
+        return tuple(sorted(self._file["frames"])) if "frames" in self._file else ()
+
+    def _stream(self, stream: str) -> h5py.Group:
+        if stream not in self.streams:
+            raise ConfigError(f"no event stream {stream!r}{suggest(stream, self.streams)}; "
+                              f"streams: {', '.join(self.streams) or 'none'}", source=str(self.path))
+        return self._file[stream]
+
+    def dtype(self, stream: str = "events") -> np.dtype:
+        group = self._stream(stream)
+        return np.dtype([(name, group[name].dtype) for name in group.attrs["fields"]])
+
+    def ms_to_idx(self, stream: str = "events") -> np.ndarray:
+        return self._stream(stream)["ms_to_idx"][:]
+
+    def read(self, stream: str = "events", t_start_us: int | None = None, t_end_us: int | None = None) -> np.ndarray:
+        """Events of ``stream`` with ``t_start_us <= t < t_end_us`` (``None``: unbounded)."""
+        group = self._stream(stream)
+        dtype = self.dtype(stream)
+        ms, t_ds = group["ms_to_idx"], group["t"]
+        n, n_ms = t_ds.shape[0], ms.shape[0]
+        lo = 0
+        if t_start_us is not None:  # ms_to_idx[floor(t_start/1000)] <= first index >= t_start
+            k = int(t_start_us) // 1000
+            lo = 0 if k < 0 else int(ms[min(k, n_ms - 1)])
+        hi = n
+        if t_end_us is not None:  # ms_to_idx[ceil(t_end/1000)] >= first index >= t_end
+            k = -(-int(t_end_us) // 1000)
+            hi = 0 if k < 0 else (int(ms[k]) if k < n_ms else n)
+        hi = max(hi, lo)
+        t = t_ds[lo:hi]
+        a = lo + (int(np.searchsorted(t, t_start_us, side="left")) if t_start_us is not None else 0)
+        b = lo + (int(np.searchsorted(t, t_end_us, side="left")) if t_end_us is not None else len(t))
+        b = max(a, b)
+        out = np.empty(b - a, dtype=dtype)
+        for name in dtype.names:
+            out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]
+        return out
+
+    def frames(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(images, t_us)`` of the frame stream ``name``."""
+        if name not in self.frame_names:
+            raise ConfigError(f"no frames {name!r}{suggest(name, self.frame_names)}; "
+                              f"frames: {', '.join(self.frame_names) or 'none'}", source=str(self.path))
+        g = self._file["frames"][name]
+        return g["images"][:], g["t"][:]
+
+    def array(self, path: str) -> np.ndarray:
+        """The dataset stored at ``path`` (see :meth:`EventWriter.write_array`)."""
+        if path not in self._file or not isinstance(self._file[path], h5py.Dataset):
+            raise ConfigError(f"no dataset {path!r}", source=str(self.path))
+        return self._file[path][()]
+
+    def array_attrs(self, path: str) -> dict:
+        return dict(self._file[path].attrs)

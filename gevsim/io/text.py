@@ -1,0 +1,79 @@
+"""Plain-text events: one ``t x y p`` line per event (t in integer microseconds).
+
+Brightness events are written as ``t x y p`` with p = 1 (ON) or 0 (OFF);
+gradient events as ``t x y p axis`` with p = +1/-1 and axis 0 (X) or 1 (Y).
+The first line is a ``#`` comment naming the columns.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from gevsim import __version__
+from gevsim.errors import ConfigError
+from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE, check_events, is_gradient
+from gevsim.io.atomic import atomic_path
+
+_ROWS = 2**16  # lines formatted per write
+
+
+def export_text(path, events: np.ndarray) -> Path:
+    """Write ``events`` (brightness or gradient) to a text file, atomically."""
+    check_events(events)
+    gradient = is_gradient(events)
+    names = ("t", "x", "y", "p", "axis") if gradient else ("t", "x", "y", "p")
+    polarity = "p: +1/-1" if gradient else "p: 1 = ON, 0 = OFF"
+    header = f"# {' '.join(names)}  (gevsim {__version__}; t in microseconds; {polarity}; axis: 0 = X, 1 = Y)\n"
+    if not gradient:
+        header = header.replace("; axis: 0 = X, 1 = Y", "")
+    line = " ".join(["%d"] * len(names)) + "\n"
+    with atomic_path(path) as tmp, open(tmp, "w") as f:
+        f.write(header)
+        for start in range(0, len(events), _ROWS):
+            chunk = events[start:start + _ROWS]
+            table = np.stack([chunk[name].astype(np.int64) for name in names], axis=1)
+            f.write((line * len(chunk)) % tuple(table.ravel().tolist()))
+    return Path(path)
+
+
+def import_text(path) -> np.ndarray:
+    """Read a file written by :func:`export_text` (4 or 5 columns)."""
+    path = Path(path)
+    src = str(path)
+    if not path.is_file():
+        raise ConfigError("no such file", source=src)
+    with open(path) as f:
+        first = f.readline()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
+            table = np.loadtxt(path, dtype=np.int64, comments="#", ndmin=2)
+    except ValueError as exc:
+        raise ConfigError(f"not a 't x y p [axis]' integer table ({exc})", source=src) from None
+    if table.shape[0] == 0:  # no events: the header says which kind
+        header = first.lstrip("#").split("(")[0].split()
+        table = np.zeros((0, 5 if "axis" in header else 4), dtype=np.int64)
+    if table.shape[1] not in (4, 5):
+        raise ConfigError(f"expected 4 (t x y p) or 5 (t x y p axis) columns, got {table.shape[1]}", source=src)
+    gradient = table.shape[1] == 5
+    t, x, y, p = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
+    allowed = (-1, 1) if gradient else (0, 1)
+    checks = [
+        (np.isin(p, allowed), f"polarity must be one of {allowed}"),
+        ((x >= -(2**15)) & (x < 2**15) & (y >= -(2**15)) & (y < 2**15), "x and y must fit int16"),
+        (np.isin(table[:, 4], (0, 1)) if gradient else np.ones(len(t), bool), "axis must be 0 or 1"),
+        (np.r_[True, np.diff(t) >= 0], "timestamps must be non-decreasing"),
+    ]
+    for ok, message in checks:
+        if not ok.all():
+            row = int(np.argmin(ok))
+            raise ConfigError(f"{message}; bad event #{row}: {table[row].tolist()}", source=src)
+    events = np.empty(len(t), dtype=GRADIENT_DTYPE if gradient else BRIGHTNESS_DTYPE)
+    events["t"], events["x"], events["y"] = t, x, y
+    events["p"] = p if gradient else p.astype(bool)
+    if gradient:
+        events["axis"] = table[:, 4]
+    return events

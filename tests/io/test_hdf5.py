@@ -1,0 +1,231 @@
+"""DSEC-like HDF5 event files: round trips, ms_to_idx, windows, atomicity, errors."""
+
+import math
+import os
+
+import h5py
+import hypothesis.extra.numpy as hnp
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import gevsim
+from gevsim.errors import ConfigError
+from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE
+from gevsim.io.hdf5 import FORMAT, EventReader, EventWriter
+
+META = dict(width=64, height=48, config_toml='[sensor]\nwidth = 64\n', seed=7)
+
+
+def make_events(t, *, gradient=False, seed=0):
+    rng = np.random.default_rng(seed)
+    ev = np.zeros(len(t), dtype=GRADIENT_DTYPE if gradient else BRIGHTNESS_DTYPE)
+    ev["t"] = np.sort(np.asarray(t, dtype=np.int64))
+    ev["x"], ev["y"] = rng.integers(0, 64, len(t)), rng.integers(0, 48, len(t))
+    if gradient:
+        ev["p"], ev["axis"] = rng.choice([-1, 1], len(t)), rng.integers(0, 2, len(t))
+    else:
+        ev["p"] = rng.random(len(t)) < 0.5
+    return ev
+
+
+def brute_ms_to_idx(t, t_end_us):
+    return np.array([np.searchsorted(t, k * 1000, side="left") for k in range(math.ceil(t_end_us / 1000) + 1)])
+
+
+times = hnp.arrays(np.int64, st.integers(0, 300), elements=st.integers(0, 12_000))
+
+
+@settings(max_examples=30, deadline=None)
+@given(t=times, cuts=st.lists(st.integers(0, 300), max_size=4), extra_us=st.integers(0, 3000),
+       compression=st.sampled_from(["gzip", "lzf"]))
+def test_chunked_round_trip_and_ms_to_idx(tmp_path_factory, t, cuts, extra_us, compression):
+    path = tmp_path_factory.mktemp("h5") / "ev.h5"
+    ev = make_events(t)
+    t_end = (int(ev["t"][-1]) if len(ev) else 0) + extra_us
+    with EventWriter(path, compression=compression, **META) as w:
+        for chunk in np.split(ev, sorted(c for c in cuts if c <= len(ev))):
+            w.append("events", chunk)
+        w.set_end(t_end)
+    with EventReader(path) as r:
+        np.testing.assert_array_equal(r.read("events"), ev)
+        assert r.read("events").dtype == BRIGHTNESS_DTYPE
+        np.testing.assert_array_equal(r.ms_to_idx("events"), brute_ms_to_idx(ev["t"], t_end))
+        assert r.t_end_us == t_end
+
+
+@pytest.fixture(scope="module")
+def window_file(tmp_path_factory):
+    rng = np.random.default_rng(3)
+    # clustered on millisecond boundaries, with a gap from 9 to 14 ms
+    t = np.concatenate([np.arange(0, 9000, 250), [999, 1000, 1000, 1001, 4000, 4000],
+                        rng.integers(14_000, 30_000, 2000)])
+    ev = make_events(t, seed=1)
+    path = tmp_path_factory.mktemp("win") / "win.h5"
+    with EventWriter(path, **META) as w:
+        for chunk in np.array_split(ev, 7):
+            w.append("events", chunk)
+    return path, ev
+
+
+@settings(max_examples=150, deadline=None)
+@given(start=st.one_of(st.none(), st.integers(-2000, 33_000)), end=st.one_of(st.none(), st.integers(-2000, 33_000)))
+def test_window_read_equals_mask(window_file, start, end):
+    path, ev = window_file
+    mask = np.ones(len(ev), bool)
+    if start is not None:
+        mask &= ev["t"] >= start
+    if end is not None:
+        mask &= ev["t"] < end
+    with EventReader(path) as r:
+        np.testing.assert_array_equal(r.read("events", start, end), ev[mask])
+
+
+@pytest.mark.parametrize("start,end,expected", [
+    (1000, 1001, 3), (999, 1000, 1), (1000, 1000, 0), (4000, 4001, 3), (9500, 13_999, 0), (5000, 4000, 0),
+    (40_000, 50_000, 0), (-500, 0, 0), (0, 1, 1)])
+def test_window_edges(window_file, start, end, expected):
+    path, ev = window_file
+    with EventReader(path) as r:
+        got = r.read("events", t_start_us=start, t_end_us=end)
+    assert len(got) == expected
+    assert np.all((got["t"] >= start) & (got["t"] < end))
+
+
+def test_multiple_streams_frames_arrays_and_attrs(tmp_path, rng):
+    path = tmp_path / "multi.h5"
+    bright = make_events(rng.integers(0, 5000, 400))
+    grad = make_events(rng.integers(0, 7200, 300), gradient=True, seed=2)
+    cs = make_events(rng.integers(100, 900, 50), seed=3)
+    img = rng.random((48, 64, 3)).astype(np.float32)
+    thr = rng.normal(0.2, 0.01, (48, 64))
+    with EventWriter(path, extra_attrs={"scene": "panel"}, **META) as w:
+        for i in range(0, 400, 100):
+            w.append("events", bright[i:i + 100])
+        w.append("gradient_events", grad)
+        w.append("csdvs_events", cs)
+        w.append_frame("irradiance", img, 0)
+        w.append_frame("irradiance", img * 2, 1000)
+        w.write_array("thresholds/on", thr, attrs={"unit": "ln"})
+        w.set_attrs("gradient_events", method="lehtonen")
+    with EventReader(path) as r:
+        assert r.streams == ("csdvs_events", "events", "gradient_events")
+        np.testing.assert_array_equal(r.read("gradient_events"), grad)
+        assert r.read("gradient_events").dtype == GRADIENT_DTYPE
+        np.testing.assert_array_equal(r.read("csdvs_events"), cs)
+        lengths = {len(r.ms_to_idx(s)) for s in r.streams}
+        assert lengths == {math.ceil(int(grad["t"][-1]) / 1000) + 1}
+        np.testing.assert_array_equal(r.ms_to_idx("csdvs_events"), brute_ms_to_idx(cs["t"], r.t_end_us))
+        images, t_us = r.frames("irradiance")
+        assert images.shape == (2, 48, 64, 3) and images.dtype == np.float32
+        np.testing.assert_array_equal(images[1], img * 2)
+        np.testing.assert_array_equal(t_us, [0, 1000])
+        np.testing.assert_array_equal(r.array("thresholds/on"), thr)
+        assert r.array_attrs("thresholds/on")["unit"] == "ln"
+        assert (r.width, r.height, r.seed, r.config_toml) == (64, 48, 7, META["config_toml"])
+        assert r.gevsim_version == gevsim.__version__
+        assert r.attrs["scene"] == "panel" and r.attrs["format"] == FORMAT and r.attrs["complete"]
+    with h5py.File(path) as f:
+        assert f["gradient_events"].attrs["method"] == "lehtonen"
+        assert f["events/t"].compression == "gzip" and f["events/t"].dtype == np.int64
+        assert f["events/p"].dtype == np.bool_ and f["gradient_events/axis"].dtype == np.uint8
+
+
+def test_explicit_end_pads_every_stream(tmp_path):
+    path = tmp_path / "end.h5"
+    ev = make_events([10, 1500, 2500])
+    with EventWriter(path, **META) as w:
+        w.append("events", ev)
+        w.close(t_end_us=10_001)
+    with EventReader(path) as r:
+        np.testing.assert_array_equal(r.ms_to_idx(), [0, 1, 2, 3] + [3] * 8)
+
+
+def test_exception_inside_with_leaves_no_file(tmp_path):
+    path = tmp_path / "killed.h5"
+    with pytest.raises(RuntimeError, match="boom"):
+        with EventWriter(path, **META) as w:
+            w.append("events", make_events(range(100)))
+            raise RuntimeError("boom")
+    assert os.listdir(tmp_path) == []
+
+
+def test_exception_leaves_existing_file_untouched(tmp_path):
+    path = tmp_path / "run.h5"
+    path.write_bytes(b"previous result")
+    with pytest.raises(RuntimeError):
+        with EventWriter(path, **META) as w:
+            w.append("events", make_events(range(10)))
+            raise RuntimeError
+    assert path.read_bytes() == b"previous result"
+    assert os.listdir(tmp_path) == ["run.h5"]
+
+
+def test_unfinished_writer_is_not_at_path(tmp_path):
+    path = tmp_path / "open.h5"
+    w = EventWriter(path, **META)
+    w.append("events", make_events(range(10)))
+    assert not path.exists()
+    w.abort()
+    assert os.listdir(tmp_path) == []
+
+
+def test_non_monotonic_across_appends_names_stream(tmp_path):
+    with pytest.raises(ValueError, match=r"'gradient_events'.*t=500 us.*t=900 us"):
+        with EventWriter(tmp_path / "bad.h5", **META) as w:
+            w.append("gradient_events", make_events([100, 900], gradient=True))
+            w.append("gradient_events", make_events([500, 1000], gradient=True))
+    assert os.listdir(tmp_path) == []
+
+
+def test_non_monotonic_within_chunk_names_stream(tmp_path):
+    ev = make_events([1, 2, 3])
+    ev["t"] = [5, 9, 7]
+    with EventWriter(tmp_path / "bad.h5", **META) as w:
+        with pytest.raises(ValueError, match=r"'csdvs_events'.*t\[1\]=9 us.*t\[2\]=7 us"):
+            w.append("csdvs_events", ev)
+
+
+def test_dtype_must_match_stream(tmp_path):
+    with EventWriter(tmp_path / "d.h5", **META) as w:
+        w.append("other", make_events([1]))
+        with pytest.raises(TypeError, match="'other'"):
+            w.append("other", make_events([2], gradient=True))
+        with pytest.raises(TypeError, match="'events'"):
+            w.append("events", make_events([2], gradient=True))
+
+
+def test_end_before_last_event_is_an_error(tmp_path):
+    w = EventWriter(tmp_path / "e.h5", **META)
+    w.append("events", make_events([5000]))
+    with pytest.raises(ValueError, match="t_end_us=4000"):
+        w.close(t_end_us=4000)
+    assert os.listdir(tmp_path) == []
+
+
+def test_reader_rejects_foreign_and_incomplete_files(tmp_path):
+    text = tmp_path / "notes.h5"
+    text.write_text("hello")
+    with pytest.raises(ConfigError, match="notes.h5.*not an HDF5 file"):
+        EventReader(text)
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as f:
+        f["events/t"] = np.arange(3)
+    with pytest.raises(ConfigError, match="foreign.h5.*not a gevsim event file"):
+        EventReader(foreign)
+    partial = tmp_path / "partial.h5"
+    with h5py.File(partial, "w") as f:
+        f.attrs["format"] = FORMAT
+    with pytest.raises(ConfigError, match="partial.h5.*incomplete"):
+        EventReader(partial)
+    with pytest.raises(ConfigError, match="missing.h5"):
+        EventReader(tmp_path / "missing.h5")
+
+
+def test_unknown_stream_suggests_a_name(tmp_path):
+    path = tmp_path / "s.h5"
+    with EventWriter(path, **META) as w:
+        w.append("events", make_events([1]))
+    with EventReader(path) as r, pytest.raises(ConfigError, match="did you mean 'events'"):
+        r.read("event")
