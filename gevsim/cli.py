@@ -1,4 +1,4 @@
-"""Command line: ``gevsim info``, ``gevsim render``, ``gevsim scenes``.
+"""Command line: ``gevsim info``, ``gevsim scenes``, ``gevsim render``, ``gevsim emulate``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
 library. Bad input prints one line naming the file and key and exits with
@@ -88,6 +88,71 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_emulate(args) -> int:
+    from pathlib import Path
+
+    if sum(x is not None for x in (args.config, args.frames, args.evreal, args.video)) != 1:
+        raise ConfigError("give exactly one of CONFIG.toml, --frames DIR, --evreal DIR or --video FILE")
+    if Path(args.out).suffix not in (".h5", ".hdf5"):
+        raise ConfigError(f"--out must name an .h5 file, got {args.out!r}", key="--out")
+    if args.config is None:
+        return _emulate_frames(args)
+    from gevsim.emulation import load_config, run
+
+    config = load_config(args.config)
+    update, close = _progress("emulate", not args.quiet)
+    render_update, render_close = _progress("render", not args.quiet)
+    try:
+        summary = run(config, args.out, cache_dir=args.cache, flicker=not args.no_flicker, noise=not args.no_noise,
+                      progress=update, render_progress=render_update)
+    finally:
+        render_close()
+        close()
+    print(f"gevsim: {summary['width']}x{summary['height']}, {summary['steps']} steps of "
+          f"{config.step_s * 1e6:g} us ({summary['duration_s'] * 1e3:g} ms), {summary['frames']} ground-truth frames;"
+          f" pixel model {summary['pixel_steps_per_s'] / 1e6:.1f} M pixel-steps/s", file=sys.stderr)
+    print(f"{'stream':22s} {'events':>10s} {'events/s':>12s} {'per pixel/s':>12s} {'emulator s':>10s}")
+    pixels = summary["width"] * summary["height"]
+    for (name, count), seconds in zip(summary["counts"].items(), summary["event_s"].values()):
+        rate = summary["rates_hz"][name]
+        print(f"{name:22s} {count:10d} {rate:12.4g} {rate / pixels:12.4g} {seconds:10.2f}")
+    print(f"gevsim: wrote {args.out} in {summary['total_s']:.1f} s", file=sys.stderr)
+    return 0
+
+
+def _emulate_frames(args) -> int:
+    import numpy as np
+
+    from gevsim.events import frames as frame_mode
+    from gevsim.io import EventWriter
+
+    if args.evreal is not None:
+        frames, t_s = frame_mode.load_evreal_frames(args.evreal)
+        source = args.evreal
+    elif args.video is not None:
+        frames, t_s = frame_mode.load_video(args.video, fps=args.fps)
+        source = args.video
+    else:
+        frames, t_s = frame_mode.load_frame_folder(args.frames, fps=args.fps)
+        source = args.frames
+    streams = frame_mode.emulate_frames(frames, t_s, rng=np.random.default_rng(args.seed))
+    h, w = frames.shape[1:]
+    config = f'# frame mode\nsource = "{source}"\nseed = {args.seed}\n'
+    with EventWriter(args.out, width=w, height=h, config_toml=config, seed=args.seed,
+                     extra_attrs={"mode": "frames", "source": str(source)}) as wr:
+        for k, t in enumerate(t_s):
+            wr.append_frame("intensity", frames[k].astype(np.float32), int(round(t * 1e6)))
+        for name, events in streams.items():
+            wr.append(name, events)
+        wr.close(t_end_us=int(round(t_s[-1] * 1e6)))
+    duration = float(t_s[-1] - t_s[0])
+    print(f"{'stream':22s} {'events':>10s} {'events/s':>12s}")
+    for name, events in streams.items():
+        print(f"{name:22s} {len(events):10d} {len(events) / duration:12.4g}")
+    print(f"gevsim: {len(frames)} frames {w}x{h} from {source}; wrote {args.out}", file=sys.stderr)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     import gevsim
 
@@ -113,6 +178,20 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_render)
+
+    e = sub.add_parser("emulate", help="emulate events: a scene (CONFIG.toml) or a frame sequence")
+    e.add_argument("config", nargs="?", help="emulation config (see gevsim/emulation/config.py)")
+    e.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    e.add_argument("--frames", metavar="DIR", help="frame mode: a folder of images (+ timestamps.txt or --fps)")
+    e.add_argument("--evreal", metavar="DIR", help="frame mode: an EVREAL sequence folder")
+    e.add_argument("--video", metavar="FILE", help="frame mode: a video file (needs imageio)")
+    e.add_argument("--fps", type=float, help="frame rate when the frames carry no timestamps")
+    e.add_argument("--seed", type=int, default=0, help="frame mode: seed of the DVS threshold mismatch")
+    e.add_argument("--no-flicker", action="store_true", help="replace every lamp waveform by its mean")
+    e.add_argument("--no-noise", action="store_true", help="ideal pixel: no noise, no mismatch, no leak")
+    e.add_argument("--cache", metavar="DIR", help="basis image cache")
+    e.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    e.set_defaults(func=cmd_emulate)
     return parser
 
 

@@ -2,6 +2,7 @@
 
 from gevsim.events.brightness import BrightnessEmulator, per_pixel_thresholds
 from gevsim.events.center_surround import CenterSurroundEmulator
+from gevsim.events.frames import emulate_frames, load_evreal_frames, load_frame_folder, load_video
 from gevsim.events.gradient import (
     LN_THRESHOLDS,
     PAPER_THRESHOLDS,
@@ -12,6 +13,7 @@ from gevsim.events.gradient import (
     ternary,
     threshold_matrix,
 )
+from gevsim.events.statistics import event_probability, event_rates
 from gevsim.events.types import AXIS_X, AXIS_Y, BRIGHTNESS_DTYPE, GRADIENT_DTYPE, check_events, empty, is_gradient
 
 __all__ = [
@@ -25,6 +27,12 @@ __all__ = [
     "LN_THRESHOLDS",
     "PAPER_THRESHOLDS",
     "decode",
+    "emulate_frames",
+    "event_probability",
+    "event_rates",
+    "load_evreal_frames",
+    "load_frame_folder",
+    "load_video",
     "encode",
     "gradients",
     "ternary",

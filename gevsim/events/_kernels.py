@@ -106,16 +106,27 @@ def _ternary(g, theta):
 
 
 @njit(inline="always")
-def _crossing(g0, g1, t_prev, t_new, theta):
+def _ternary_hysteresis(g, theta, t_old, hysteresis):
+    """Ternary state with comparator hysteresis: a +-1 state holds until |G| drops
+    below theta - hysteresis (0 hysteresis: the paper's definition)."""
+    if t_old == 1 and g >= theta - hysteresis:
+        return 1
+    if t_old == -1 and g <= hysteresis - theta:
+        return -1
+    return _ternary(g, theta)
+
+
+@njit(inline="always")
+def _crossing(g0, g1, t_prev, t_new, theta, hysteresis):
     """Fraction of the step at which g crossed the threshold that makes t_new."""
     if t_new == 1:
         level = theta
     elif t_new == -1:
         level = -theta
     elif t_prev == 1:
-        level = theta
+        level = theta - hysteresis
     else:
-        level = -theta
+        level = hysteresis - theta
     if g1 == g0:
         return 1.0
     s = (level - g0) / (g1 - g0)
@@ -123,7 +134,7 @@ def _crossing(g0, g1, t_prev, t_new, theta):
 
 
 @njit(parallel=True, cache=True)
-def gradient(v, t_start, t_end, g_prev, tern, theta, rc, interpolate, table,
+def gradient(v, t_start, t_end, g_prev, tern, theta, hysteresis, rc, interpolate, table,
              buf_t, buf_step, buf_pix, buf_p, buf_axis, count):
     """Gradient events (Lehtonen et al.): for each comparator (axis a, pixel y, x)
     G_X = v[y, x+1] - v[y, x], G_Y = v[y+1, x] - v[y, x] (with resolution
@@ -155,9 +166,9 @@ def gradient(v, t_start, t_end, g_prev, tern, theta, rc, interpolate, table,
                             g1 = 0.5 * (g1 + g2)
                     th = theta[axis, y, x]
                     t_old = tern[axis, y, x]
-                    t_new = _ternary(g1, th)
+                    t_new = _ternary_hysteresis(g1, th, t_old, hysteresis)
                     if t_new != t_old:
-                        s = _crossing(g_prev[axis, y, x], g1, t_old, t_new, th) if interpolate else 1.0
+                        s = _crossing(g_prev[axis, y, x], g1, t_old, t_new, th, hysteresis) if interpolate else 1.0
                         te = ta + s * dt
                         _push(y, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
                               np.int64(math.floor(te * 1e6 + 0.5)), t, y * W + x,

@@ -100,12 +100,16 @@ class GradientEmulator:
     rc : resolution compression (H and W even).
     interpolate : timestamps at the interpolated crossing inside a step (physical mode); False
         stamps events with the sample time (frame mode, as in the paper).
+    hysteresis : comparator hysteresis (threshold units): a +-1 state returns to 0 only when
+        |G| < Theta - hysteresis. 0 (default) is the paper's definition; a design option
+        against noise-induced chatter of comparators sitting near their threshold.
     """
 
     dtype = GRADIENT_DTYPE
 
     def __init__(self, shape, *, thresholds=LN_THRESHOLDS, theta=None, mismatch_sigma: float = 0.0,
-                 rc: bool = False, interpolate: bool = True, rng: np.random.Generator | None = None):
+                 rc: bool = False, interpolate: bool = True, hysteresis: float = 0.0,
+                 rng: np.random.Generator | None = None):
         self.clock = SampledSignal(shape)
         self.shape = self.clock.shape
         if rc:
@@ -123,6 +127,9 @@ class GradientEmulator:
         self.theta = theta2  # (2, H, W): comparators of the X and Y axes
         self.rc = bool(rc)
         self.interpolate = bool(interpolate)
+        if not (0.0 <= hysteresis < float(base.min())):
+            raise ValueError(f"hysteresis must be in [0, smallest threshold), got {hysteresis!r}")
+        self.hysteresis = float(hysteresis)
         self.g_prev = np.zeros((2,) + self.shape)
         self.state = np.zeros((2,) + self.shape, np.int8)
 
@@ -153,7 +160,8 @@ class GradientEmulator:
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
 
         def call(st, *bufs):
-            _kernels.gradient(v, t_start, t_end, *st, self.theta, self.rc, self.interpolate, EVENT_TABLE, *bufs)
+            _kernels.gradient(v, t_start, t_end, *st, self.theta, self.hysteresis, self.rc, self.interpolate,
+                              EVENT_TABLE, *bufs)
 
         events, (g_prev, state) = run_with_buffers(
             call, (g_prev, state), nblocks=self.shape[0], estimate=max(1, len(t_end)) * self.shape[1] // 4,

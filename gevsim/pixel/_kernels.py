@@ -88,13 +88,13 @@ def normals(key, step, count, stream, table):
 
 @njit(parallel=True, cache=True)
 def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0,
-                  fc_ref, i_ref, fc_max, f2, shot_q, read_sd, table, out):
+                  fc_ref, i_ref, fc_max, f2, shot_q, table, out):
     """Advance the photoreceptor over T steps of held photocurrent.
 
     current (T, P) photocurrent (A) held over each step of duration dt (T,) s;
     gain, dark (P,) fixed patterns; v1, v2 (P,) filter states in ln units,
-    fn (M, P) 1/f-noise states with corner frequencies fn_hz (M,) and
-    variances fn_var (M,), all updated in place; out (T, P) receives the output
+    fn (M, P) states of Ornstein-Uhlenbeck noise added to the output (band-limited
+    read noise, 1/f poles) with corner frequencies fn_hz (M,) and variances fn_var (M,), all updated in place; out (T, P) receives the output
     in ln units. fc_ref <= 0 means infinite bandwidth (no filter); f2 <= 0 no
     second pole; shot_q = elementary charge * pi to enable shot noise, else 0.
     Returns the number of photocurrents that were negative, not finite or gave a
@@ -120,7 +120,6 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
         for t in range(T):
             d = dt[t]
             k_shot = stream_key(key, step0 + t, 1)
-            k_read = stream_key(key, step0 + t, 2)
             k_fn = np.empty(M, np.uint32)
             for m in range(M):
                 k_fn[m] = stream_key(key, step0 + t, 3 + m)
@@ -171,7 +170,5 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
                         mix32(k_fn[m] ^ np.uint32(p)), table)
                     fn[m, p] = s
                     y += s
-                if read_sd > 0.0:
-                    y += read_sd * normal(mix32(k_read ^ np.uint32(p)), table)
                 out[t, p] = y
     return bad.sum()

@@ -39,6 +39,17 @@ def flicker_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.nda
     return hz, var
 
 
+def output_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndarray, np.ndarray]:
+    """All Ornstein-Uhlenbeck processes added to the output: the read noise (one pole at
+    ``read_noise_bandwidth_hz``, so its statistics do not depend on the time step) and
+    the 1/f poles."""
+    hz, var = flicker_noise_poles(noise, volts_per_ln)
+    if noise.read_noise_v > 0:
+        hz = np.r_[noise.read_noise_bandwidth_hz, hz]
+        var = np.r_[(noise.read_noise_v / volts_per_ln) ** 2, var]
+    return hz, var
+
+
 def fixed_pattern(shape, noise: NoiseParams, *, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel photocurrent gain (PRNU) and dark current (DSNU, lognormal), drawn once.
 

@@ -92,7 +92,8 @@ class NoiseParams(FromTable):
     Parameters
     ----------
     shot_noise : photon/photocurrent shot noise (PSD 2 q I) through the photoreceptor filter.
-    read_noise_v : white voltage noise (rms, volts) added to each output sample (readout/comparator).
+    read_noise_v : readout/comparator voltage noise (rms, volts) added to the output, band-limited
+        to ``read_noise_bandwidth_hz`` (one pole) so that it does not depend on the time step.
     dark_current_a : mean dark current (A); also sets the floor of the log response.
     dark_current_spread : DSNU, lognormal sigma of the per-pixel dark current (fixed pattern).
     prnu : photo response non-uniformity, relative sigma of the per-pixel gain (fixed pattern).
@@ -103,6 +104,7 @@ class NoiseParams(FromTable):
 
     shot_noise: bool = True
     read_noise_v: float = 0.0
+    read_noise_bandwidth_hz: float = 10000.0
     dark_current_a: float = 1e-15
     dark_current_spread: float = 0.0
     prnu: float = 0.0
@@ -117,6 +119,7 @@ class NoiseParams(FromTable):
         for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "prnu", "flicker_noise_v"):
             _check(n, name, getattr(self, name), nonnegative=True)
         _check(n, "prnu", self.prnu, nonnegative=True, upper=0.5)
+        _check(n, "read_noise_bandwidth_hz", self.read_noise_bandwidth_hz, positive=True)
         _check(n, "flicker_noise_low_hz", self.flicker_noise_low_hz, positive=True)
         _check(n, "flicker_noise_high_hz", self.flicker_noise_high_hz, positive=True)
         if self.flicker_noise_high_hz <= self.flicker_noise_low_hz:

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.constants import elementary_charge
 
 from gevsim.pixel import _kernels
-from gevsim.pixel.noise import fixed_pattern, flicker_noise_poles
+from gevsim.pixel.noise import fixed_pattern, output_noise_poles
 from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
 
 
@@ -48,7 +48,7 @@ class Photoreceptor:
         self.gain = gain.ravel().astype(np.float64)
         self.dark_a = dark.ravel().astype(np.float64)
         self.key = int(rng.integers(0, 2**32))
-        self.fn_hz, self.fn_var = flicker_noise_poles(noise, params.volts_per_ln)
+        self.fn_hz, self.fn_var = output_noise_poles(noise, params.volts_per_ln)
         n = self.gain.size
         self.fn = (np.sqrt(self.fn_var)[:, None] * rng.standard_normal((len(self.fn_hz), n))).astype(np.float64)
         self.v1 = np.zeros(n)
@@ -110,7 +110,7 @@ class Photoreceptor:
             flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint32(self.key), self.step,
             fc_ref, p.cutoff_ref_photocurrent_a, p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf,
             p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0,
-            self.noise.read_noise_v / p.volts_per_ln, _kernels.NORMAL_TABLE, out,
+            _kernels.NORMAL_TABLE, out,
         )
         if bad:
             raise ValueError(f"photocurrent must be finite and >= 0 (> 0 where the dark current is 0): "

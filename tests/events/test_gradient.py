@@ -158,3 +158,17 @@ def test_bad_input():
         em.process(np.zeros((2, 6, 4)), [0.0, 1.0])
     with pytest.raises(ValueError, match="increase strictly"):
         em.process(np.zeros((2, 4, 6)), [1.0, 1.0])
+
+
+def test_hysteresis_suppresses_chatter_near_threshold():
+    """G dithering around the threshold: without hysteresis every crossing is an event,
+    with hysteresis larger than the dither only the first."""
+    g = 0.1 + 0.01 * np.tile([1.0, -1.0], 20)  # G_X alternates 0.11 / 0.09 around theta = 0.1
+    v = np.zeros((len(g), 1, 2))
+    v[:, 0, 1] = g
+    t = 1e-4 * np.arange(len(g))
+    plain = GradientEmulator((1, 2), thresholds=(0.1,)).process(v, t)
+    hyst = GradientEmulator((1, 2), thresholds=(0.1,), hysteresis=0.02).process(v, t)
+    assert len(plain) == len(g) - 1 and len(hyst) == 0  # the first sample already sets T = 1
+    with pytest.raises(ValueError, match="hysteresis"):
+        GradientEmulator((1, 2), thresholds=(0.1,), hysteresis=0.1)

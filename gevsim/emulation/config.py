@@ -1,0 +1,142 @@
+"""The emulation config: which scene, sensor, emulators, time grid and outputs.
+
+```toml
+[emulation]
+scene = "office"               # built-in scene or manifest path (relative to this file)
+sensor = "davis346"            # sensor preset name or TOML path
+emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]
+seed = 1
+duration_s = 0.02              # default: the scene's
+step_s = 1e-5                  # pixel-model time step
+chunk_steps = 256              # steps processed per chunk (memory bound)
+frame_rate_hz = 1000.0         # ground-truth frames (0: none)
+aps = false                    # also emulate APS frames (needs the preset's [aps])
+aps_exposure_s = 5e-4
+
+[render]                       # overrides of the scene manifest's [render]
+width = 64
+height = 48
+spp = 4
+
+[gradient]
+thresholds_ln = [0.05, 0.1, 0.2]   # assigned by (x + y) mod n
+
+[csdvs]
+surround_length_px = 2.0
+surround_tau_s = 1e-3
+```
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from gevsim.config import TomlReader, read_toml
+from gevsim.errors import ConfigError, check_keys, suggest
+
+EMULATORS = ("dvs", "gradient", "gradient_rc", "csdvs")
+#: HDF5 stream of each emulator.
+STREAMS = {"dvs": "events", "gradient": "gradient_events", "gradient_rc": "gradient_rc_events",
+           "csdvs": "csdvs_events"}
+TABLES = ("emulation", "render", "gradient", "csdvs")
+EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
+                  "aps", "aps_exposure_s")
+RENDER_KEYS = ("width", "height", "spp", "seed", "max_px_per_pose")
+
+
+@dataclass(frozen=True)
+class EmulationConfig:
+    scene: str
+    sensor: str = "davis346"
+    emulators: tuple[str, ...] = EMULATORS
+    seed: int = 0
+    duration_s: float | None = None
+    step_s: float = 1e-5
+    chunk_steps: int = 256
+    frame_rate_hz: float = 1000.0
+    aps: bool = False
+    aps_exposure_s: float = 5e-4
+    render: dict = field(default_factory=dict)
+    thresholds_ln: tuple[float, ...] = (0.05, 0.1, 0.2)
+    surround_length_px: float = 2.0
+    surround_tau_s: float = 1e-3
+    source: str = ""
+    text: str = ""
+
+
+def load_config(path: str | Path) -> EmulationConfig:
+    """Read and validate an emulation config; errors name the file and key."""
+    path = Path(path)
+    raw = read_toml(path, what="emulation config")
+    src = str(path)
+    r = TomlReader(src)
+    check_keys(raw, TABLES, source=src, where="")
+    em = r.table(raw, "emulation")
+    check_keys(em, EMULATION_KEYS, source=src, where="emulation")
+    if not isinstance(em.get("scene"), str):
+        r.fail("emulation.scene", "missing: a built-in scene name or a manifest path")
+    scene = em["scene"]
+    if scene.endswith(".toml") and not Path(scene).is_absolute():
+        scene = str((path.parent / scene).resolve())
+    sensor = em.get("sensor", "davis346")
+    if not isinstance(sensor, str):
+        r.fail("emulation.sensor", f"expected a preset name or path, got {sensor!r}")
+    if sensor.endswith(".toml") and not Path(sensor).is_absolute():
+        sensor = str((path.parent / sensor).resolve())
+    emulators = em.get("emulators", list(EMULATORS))
+    if not isinstance(emulators, list) or not emulators:
+        r.fail("emulation.emulators", f"expected a non-empty list drawn from {list(EMULATORS)}, got {emulators!r}")
+    for name in emulators:
+        if name not in EMULATORS:
+            r.fail("emulation.emulators", f"unknown emulator {name!r}{suggest(str(name), EMULATORS)}; "
+                                          f"choose from {', '.join(EMULATORS)}")
+    render = r.table(raw, "render")
+    check_keys(render, RENDER_KEYS, source=src, where="render")
+    for key in ("width", "height", "spp"):
+        if key in render:
+            r.number(render, key, "render", positive=True, integer=True)
+    grad = r.table(raw, "gradient")
+    check_keys(grad, ("thresholds_ln",), source=src, where="gradient")
+    thresholds = grad.get("thresholds_ln", [0.05, 0.1, 0.2])
+    if (not isinstance(thresholds, list) or not thresholds
+            or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 and math.isfinite(t)
+                       for t in thresholds)):
+        r.fail("gradient.thresholds_ln", f"expected a list of positive numbers, got {thresholds!r}")
+    cs = r.table(raw, "csdvs")
+    check_keys(cs, ("surround_length_px", "surround_tau_s"), source=src, where="csdvs")
+    aps = em.get("aps", False)
+    if not isinstance(aps, bool):
+        r.fail("emulation.aps", f"expected true or false, got {aps!r}")
+    duration = em.get("duration_s")
+    return EmulationConfig(
+        scene=scene,
+        sensor=sensor,
+        emulators=tuple(emulators),
+        seed=r.number(em, "seed", "emulation", 0, minimum=0, integer=True),
+        duration_s=None if duration is None else float(r.number(em, "duration_s", "emulation", positive=True)),
+        step_s=float(r.number(em, "step_s", "emulation", 1e-5, positive=True)),
+        chunk_steps=r.number(em, "chunk_steps", "emulation", 256, positive=True, integer=True),
+        frame_rate_hz=float(r.number(em, "frame_rate_hz", "emulation", 1000.0, minimum=0.0)),
+        aps=aps,
+        aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
+        render=dict(render),
+        thresholds_ln=tuple(float(t) for t in thresholds),
+        surround_length_px=float(r.number(cs, "surround_length_px", "csdvs", 2.0, positive=True)),
+        surround_tau_s=float(r.number(cs, "surround_tau_s", "csdvs", 1e-3, minimum=0.0)),
+        source=src,
+        text=path.read_text(),
+    )
+
+
+def check_consistency(config: EmulationConfig, *, duration_s: float) -> None:
+    """Cross-field checks once the scene's duration is known."""
+    if config.step_s >= duration_s:
+        raise ConfigError(f"step_s = {config.step_s} must be shorter than the duration {duration_s} s",
+                          source=config.source, key="emulation.step_s")
+    if config.aps and config.frame_rate_hz <= 0:
+        raise ConfigError("aps = true needs frame_rate_hz > 0", source=config.source, key="emulation.aps")
+    if config.aps and config.aps_exposure_s > 1.0 / max(config.frame_rate_hz, 1e-12):
+        raise ConfigError("aps_exposure_s exceeds the frame period", source=config.source,
+                          key="emulation.aps_exposure_s")
