@@ -1,0 +1,133 @@
+"""The emulation driver end to end on tiny scenes: outputs, chunking, seeds, counterfactuals."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gevsim.cli import main
+from gevsim.emulation import load_config, run
+from gevsim.errors import ConfigError
+from gevsim.io import EventReader
+
+DATA = Path(__file__).parents[1] / "data"
+STREAMS = ("events", "gradient_events", "gradient_rc_events", "csdvs_events")
+
+
+def config(tmp_path, scene="card.toml", sensor="davis346", name="run.toml", **emulation):
+    fields = {"scene": str(DATA / scene), "sensor": sensor, "seed": 4, "step_s": 2e-5, "chunk_steps": 50,
+              "frame_rate_hz": 1000.0, **emulation}
+    lines = ["[emulation]"]
+    for key, value in fields.items():
+        lines.append(f"{key} = {value!r}".replace("'", '"').replace("True", "true").replace("False", "false"))
+    path = tmp_path / name
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def read_all(path):
+    with EventReader(path) as r:
+        return {s: r.read(s) for s in r.streams}, r
+
+
+def test_outputs_and_summary(tmp_path):
+    cfg = load_config(config(tmp_path, aps=True, aps_exposure_s=5e-4))
+    summary = run(cfg, tmp_path / "out.h5", cache_dir=tmp_path / "cache")
+    events, reader = read_all(tmp_path / "out.h5")
+    assert set(events) == set(STREAMS)
+    assert {k: len(v) for k, v in events.items()} == summary["counts"]
+    assert summary["steps"] == 200 and (summary["width"], summary["height"]) == (32, 24)
+    with EventReader(tmp_path / "out.h5") as r:
+        assert "log_photocurrent" in r.frame_names and "aps" in r.frame_names
+        images, t_us = r.frames("log_photocurrent")
+        assert images.shape == (5, 24, 32) and list(t_us) == [0, 1000, 2000, 3000, 4000]
+        aps, aps_t = r.frames("aps")
+        assert aps.dtype == np.uint16 and list(aps_t) == [1000, 2000, 3000, 4000]
+        assert r.seed == 4 and 'scene = "' in r.config_toml
+        theta = r.array("/thresholds/gradient")
+        assert theta.shape == (2, 24, 32)
+
+
+def test_chunking_does_not_change_the_events(tmp_path):
+    a = run(load_config(config(tmp_path, chunk_steps=7, name="a.toml")), tmp_path / "a.h5", cache_dir=tmp_path / "c")
+    b = run(load_config(config(tmp_path, chunk_steps=200, name="b.toml")), tmp_path / "b.h5", cache_dir=tmp_path / "c")
+    ea, _ = read_all(tmp_path / "a.h5")
+    eb, _ = read_all(tmp_path / "b.h5")
+    assert sum(a["counts"].values()) > 100
+    for s in STREAMS:
+        np.testing.assert_array_equal(ea[s], eb[s])
+    assert a["counts"] == b["counts"]
+
+
+def test_seed_determinism(tmp_path):
+    runs = []
+    for name, seed in (("a", 4), ("b", 4), ("c", 5)):
+        run(load_config(config(tmp_path, name=f"{name}.toml", seed=seed)), tmp_path / f"{name}.h5",
+            cache_dir=tmp_path / "c")
+        runs.append(read_all(tmp_path / f"{name}.h5")[0])
+    for s in STREAMS:
+        np.testing.assert_array_equal(runs[0][s], runs[1][s])
+    assert not np.array_equal(runs[0]["events"], runs[2]["events"])
+
+
+def test_static_scene_without_flicker_and_noise_gives_no_events(tmp_path):
+    summary = run(load_config(config(tmp_path)), tmp_path / "o.h5", cache_dir=tmp_path / "c", flicker=False,
+                  noise=False)
+    assert sum(summary["counts"].values()) == 0
+
+
+def test_uniform_flicker_leaks_into_gradients_only_through_finite_bandwidth(tmp_path):
+    """One lamp lights everything: with an infinitely fast ideal pixel the log image only
+    shifts, so there are no gradient events while the DVS fires; with the finite,
+    light-dependent bandwidth of a real photoreceptor (noise off) dim pixels lag the bright
+    ones and gradients flicker (DESIGN.md, Photoreceptor)."""
+    ideal = run(load_config(config(tmp_path, sensor="ideal", name="i.toml")), tmp_path / "i.h5",
+                cache_dir=tmp_path / "c")
+    assert ideal["counts"]["gradient_events"] == 0 and ideal["counts"]["gradient_rc_events"] == 0
+    assert ideal["counts"]["events"] > 32 * 24 * 4  # several events per pixel over 4 flicker periods
+    slow = run(load_config(config(tmp_path, name="s.toml")), tmp_path / "s.h5", cache_dir=tmp_path / "c",
+               noise=False)
+    assert slow["counts"]["gradient_events"] > 0
+
+
+def test_cli_emulate_and_frame_mode(tmp_path, capsys):
+    cfg = config(tmp_path)
+    assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 0
+    table = capsys.readouterr().out
+    assert "gradient_events" in table and "events/s" in table
+    # Frame mode from a folder of PNGs.
+    import imageio.v3 as iio
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    rng = np.random.default_rng(0)
+    base = rng.integers(0, 200, (24, 32))
+    for k in range(5):
+        iio.imwrite(frames / f"f{k:02d}.png", np.clip(base + 10 * k * (np.arange(32) > 16), 0, 255).astype(np.uint8))
+    assert main(["emulate", "--frames", str(frames), "--fps", "30", "--out", str(tmp_path / "f.h5")]) == 0
+    with EventReader(tmp_path / "f.h5") as r:
+        assert len(r.read("gradient_events")) > 0 and r.frames("intensity")[0].shape == (5, 24, 32)
+
+
+@pytest.mark.parametrize(
+    "emulation, text",
+    [
+        (dict(emulators=["dvs", "gradiant"]), "did you mean 'gradient'"),
+        (dict(step_s=1.0), "step_s"),
+        (dict(sensor="davis347"), "did you mean 'davis346'"),
+        (dict(aps=True, sensor="dvs128"), "no [aps] table"),
+    ],
+)
+def test_bad_configs_exit_2(tmp_path, capsys, emulation, text):
+    cfg = config(tmp_path, **emulation)
+    assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert text in err and err.count("\n") == 1
+    assert not (tmp_path / "x.h5").exists() and not list(tmp_path.glob(".x.h5*"))
+
+
+def test_config_errors_name_the_key(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('[emulation]\nscene = "office"\nstep_us = 1\n')
+    with pytest.raises(ConfigError, match=r"emulation\.step_us.*did you mean 'step_s'"):
+        load_config(path)
