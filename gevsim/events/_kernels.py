@@ -189,3 +189,49 @@ def apply_gradient_events(state, axis, y, x, p, table):
                 state[a, yy, xx] = col - 1
                 break
     return state
+
+
+MAX_SORT_KEYS = 1 << 26
+
+
+@njit(cache=True)
+def collect(buf_t, buf_step, buf_pix, buf_p, buf_axis, count, n_steps, width, x, y, t, p, axis):
+    """Gather the block buffers into time order: a stable counting sort on
+    (timestamp, step) over the blocks taken in order, so ties keep block and
+    emission order. Timestamps grow with the step, so this order does not depend
+    on how a sequence is cut into chunks. Writes x, y, t, p, axis (length sum(count))."""
+    nblocks = count.shape[0]
+    tmin = np.int64(0)
+    tmax = np.int64(0)
+    first = True
+    for b in range(nblocks):
+        for i in range(count[b]):
+            v = buf_t[b, i]
+            if first or v < tmin:
+                tmin = v
+            if first or v > tmax:
+                tmax = v
+            first = False
+    if first:
+        return True
+    nkeys = (tmax - tmin + 1) * n_steps
+    if nkeys > MAX_SORT_KEYS:
+        return False  # the caller sorts instead
+    hist = np.zeros(nkeys + 1, np.int64)
+    for b in range(nblocks):
+        for i in range(count[b]):
+            hist[(buf_t[b, i] - tmin) * n_steps + buf_step[b, i] + 1] += 1
+    for k in range(nkeys):
+        hist[k + 1] += hist[k]
+    for b in range(nblocks):
+        for i in range(count[b]):
+            key = (buf_t[b, i] - tmin) * n_steps + buf_step[b, i]
+            j = hist[key]
+            hist[key] = j + 1
+            pix = buf_pix[b, i]
+            x[j] = pix % width
+            y[j] = pix // width
+            t[j] = buf_t[b, i]
+            p[j] = buf_p[b, i]
+            axis[j] = buf_axis[b, i]
+    return True

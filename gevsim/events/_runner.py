@@ -1,13 +1,15 @@
 """Shared driving of the event kernels: input checks, state, buffers, sorting.
 
-Events of a chunk are ordered by (timestamp, step, pixel, then the kernel's
-order for one pixel): this order is the same whether a sequence is processed
-in one call or in chunks.
+Events of a chunk are ordered by (timestamp, step, block, the kernel's
+emission order): this order is the same whether a sequence is processed in
+one call or in chunks.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from gevsim.events import _kernels
 
 
 class SampledSignal:
@@ -43,21 +45,7 @@ class SampledSignal:
         return np.ascontiguousarray(v), prev, t, first
 
 
-def sort_order(t_us: np.ndarray, step: np.ndarray, pix: np.ndarray) -> np.ndarray:
-    """Stable order by (timestamp, step, pixel): one composite int64 key when it fits
-    (2.6x faster than ``np.lexsort`` on 1.3 M events), else ``np.lexsort``."""
-    if len(t_us) == 0:
-        return np.zeros(0, np.int64)
-    n_pix = int(pix.max()) + 1
-    n_step = int(step.max()) + 1
-    span = int(t_us.max() - t_us.min()) + 1
-    if span * n_step * n_pix < 2**62:
-        key = (t_us - t_us.min()) * (n_step * n_pix) + step.astype(np.int64) * n_pix + pix
-        return np.argsort(key, kind="stable")
-    return np.lexsort((pix, step, t_us))
-
-
-def run_with_buffers(call, state: tuple, *, nblocks: int, estimate: int, dtype, width: int):
+def run_with_buffers(call, state: tuple, *, nblocks: int, n_steps: int, estimate: int, dtype, width: int):
     """Run ``call(state, buf_t, buf_step, buf_pix, buf_p, buf_axis, count)`` on copies of
     the ``state`` arrays (the kernel mutates them), growing the buffers until nothing
     overflows; return (events sorted, new state)."""
@@ -74,18 +62,21 @@ def run_with_buffers(call, state: tuple, *, nblocks: int, estimate: int, dtype, 
         if count.max(initial=0) <= cap:
             break
         cap = int(count.max()) * 4
-    mask = np.arange(cap)[None, :] < count[:, None]
-    t, step, pix = buf_t[mask], buf_step[mask], buf_pix[mask]
-    order = sort_order(t, step, pix)
-    events = np.zeros(len(t), dtype=dtype)
-    pix = pix[order]
-    events["t"] = t[order]
-    events["x"] = pix % width
-    events["y"] = pix // width
-    p = buf_p[mask][order]
+    n = int(count.sum())
+    x, y = np.empty(n, np.int16), np.empty(n, np.int16)
+    t, p, axis = np.empty(n, np.int64), np.empty(n, np.int8), np.empty(n, np.uint8)
+    if not _kernels.collect(buf_t, buf_step, buf_pix, buf_p, buf_axis, count, n_steps, width, x, y, t, p, axis):
+        # Long chunk: the same order by a stable sort of the block-major buffers.
+        mask = np.arange(cap)[None, :] < count[:, None]
+        order = np.lexsort((buf_step[mask], buf_t[mask]))
+        pix = buf_pix[mask][order]
+        x[:], y[:], t[:] = pix % width, pix // width, buf_t[mask][order]
+        p[:], axis[:] = buf_p[mask][order], buf_axis[mask][order]
+    events = np.empty(n, dtype=dtype)
+    events["x"], events["y"], events["t"] = x, y, t
     if "axis" in dtype.names:
         events["p"] = p
-        events["axis"] = buf_axis[mask][order]
+        events["axis"] = axis
     else:
         events["p"] = p > 0
     return events, args

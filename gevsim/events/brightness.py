@@ -78,7 +78,8 @@ class BrightnessEmulator:
 
         nblocks = (flat.shape[1] + _kernels.BLOCK - 1) // _kernels.BLOCK
         events, (ref, v_prev, last_t) = run_with_buffers(
-            call, (ref, v_prev, last_t), nblocks=nblocks, estimate=max(1, len(t_end)) * _kernels.BLOCK // 8,
+            call, (ref, v_prev, last_t), nblocks=nblocks, n_steps=len(t_end),
+            estimate=max(1, len(t_end)) * _kernels.BLOCK // 8,
             dtype=self.dtype, width=self.shape[1])
         self.ref, self.v_prev, self.last_t = ref, v_prev, last_t
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])

@@ -164,7 +164,8 @@ class GradientEmulator:
                               EVENT_TABLE, *bufs)
 
         events, (g_prev, state) = run_with_buffers(
-            call, (g_prev, state), nblocks=self.shape[0], estimate=max(1, len(t_end)) * self.shape[1] // 4,
+            call, (g_prev, state), nblocks=self.shape[0], n_steps=len(t_end),
+            estimate=max(1, len(t_end)) * self.shape[1] // 4,
             dtype=self.dtype, width=self.shape[1])
         self.g_prev, self.state = g_prev, state
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
