@@ -101,20 +101,24 @@ class Photoreceptor:
         v1, v2, fn = self.v1.copy(), self.v2.copy(), self.fn.copy()
         if not self.started:
             first = flat[0].astype(np.float64) * self.gain + self.dark_a
-            if np.all(np.isfinite(first)) and np.all(first > 0):  # else the kernel reports the bad values
+            if np.all(np.isfinite(first)) and np.all(first > 0):  # else the check below reports them
                 v1 = np.log(first)
                 v2 = v1.copy()
-        out = np.empty(flat.shape, np.float32)
-        fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
-        bad = _kernels.photoreceptor(
-            flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint32(self.key), self.step,
-            fc_ref, p.cutoff_ref_photocurrent_a, p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf,
-            p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0,
-            _kernels.NORMAL_TABLE, out,
-        )
+        bad = int(np.count_nonzero(~np.isfinite(flat))) + int(np.count_nonzero(flat < 0))
+        if not bad and np.any(self.dark_a <= 0):
+            dark_free = self.dark_a <= 0
+            bad = int(np.count_nonzero(flat[:, dark_free] * self.gain[dark_free] <= 0))
         if bad:
             raise ValueError(f"photocurrent must be finite and >= 0 (> 0 where the dark current is 0): "
                              f"{bad} of {flat.size} values are not")
+        out = np.empty(flat.shape, np.float32)
+        fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
+        _kernels.photoreceptor(
+            flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint32(self.key), self.step,
+            fc_ref, p.cutoff_ref_photocurrent_a, p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf,
+            p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0,
+            out,
+        )
         self.v1, self.v2, self.fn = v1, v2, fn
         self.t_s = float(t[-1])
         self.step += len(t)

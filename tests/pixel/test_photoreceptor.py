@@ -137,14 +137,14 @@ def test_fixed_pattern_noise_statistics():
 
 
 def test_counter_based_normals_are_standard_normal():
-    z = _kernels.normals(1234, 7, 2_000_000, 1, _kernels.NORMAL_TABLE)
+    z = _kernels.normals(1234, 7, 2_000_000, 1)
     assert abs(z.mean()) < 5 / math.sqrt(len(z))
     assert z.var() == pytest.approx(1.0, abs=5e-3)
     assert abs(stats.kurtosis(z)) < 0.02
     assert stats.kstest(z, "norm").pvalue > 1e-3
     tail = np.mean(np.abs(z) > 4)
-    assert tail == pytest.approx(2 * stats.norm.sf(4), rel=0.3)  # exact tails, not a truncated table
-    other = _kernels.normals(1234, 8, 100_000, 1, _kernels.NORMAL_TABLE)
+    assert tail == pytest.approx(2 * stats.norm.sf(4), rel=0.3)  # true tails, not truncated
+    other = _kernels.normals(1234, 8, 100_000, 1)
     assert abs(np.corrcoef(z[:100_000], other)[0, 1]) < 0.02
 
 
