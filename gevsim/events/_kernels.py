@@ -133,6 +133,33 @@ def _crossing(g0, g1, t_prev, t_new, theta, hysteresis):
     return min(max(s, 0.0), 1.0)
 
 
+@njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
+def _gradient_row(here, there, step_x, n, theta, g_prev, tern, hysteresis, rc, g_new, t_new):
+    """Branch-free (vectorised) pass over one row of comparators of one axis: the new
+    gradient and ternary state of comparator i at pixel i * step_x, where the
+    neighbour values are ``there`` (same pixel, next row) for G_Y or ``here`` shifted
+    by one for G_X. Returns how many comparators changed state."""
+    changed = 0
+    for i in range(n):
+        x = i * step_x
+        if there.shape[0] == 0:  # X axis: neighbours in the same row
+            g = np.float64(here[x + 1]) - np.float64(here[x])
+            g2 = (np.float64(here[x + 2]) - np.float64(here[x + 1])) if x + 2 < here.shape[0] else 0.0
+        else:  # Y axis: ``there`` is the next row (with RC the one after it, whose difference is halved)
+            g = np.float64(there[x]) - np.float64(here[x])
+            g2 = 0.0
+        g = 0.5 * (g + g2) if rc else g
+        th = theta[x]
+        old = tern[x]
+        up = (g >= th) or (old == 1 and g >= th - hysteresis)
+        down = (g <= -th) or (old == -1 and g <= hysteresis - th)
+        new = np.int8(1) if up else (np.int8(-1) if down else np.int8(0))
+        g_new[i] = g
+        t_new[i] = new
+        changed += new != old
+    return changed
+
+
 @njit(parallel=True, cache=True)
 def gradient(v, t_start, t_end, g_prev, tern, theta, hysteresis, rc, interpolate, table,
              buf_t, buf_step, buf_pix, buf_p, buf_axis, count):
@@ -141,40 +168,55 @@ def gradient(v, t_start, t_end, g_prev, tern, theta, hysteresis, rc, interpolate
     compression ``rc`` the mean over the pair starting at even x resp. even y,
     one comparator per pair); ternary state T = sgn(G) if |G| >= theta else 0;
     an event ``table[T_prev + 1, T + 1]`` whenever T changes. g_prev, tern and
-    theta are (2, H, W); v is (T, H, W)."""
+    theta are (2, H, W); v is (T, H, W). A vectorised pass finds the comparators
+    that change; events are then written for those only."""
     T, H, W = v.shape
     cap = buf_t.shape[1]
+    empty = np.empty(0, v.dtype)
     for y in prange(H):
+        g_new = np.empty(W)
+        t_new = np.empty(W, np.int8)
         for t in range(T):
             ta = t_start[t]
             dt = t_end[t] - ta
             for axis in range(2):
-                for x in range(W):
-                    if axis == 0:
-                        if x == W - 1 or (rc and x % 2 == 1):
-                            continue
-                        g1 = np.float64(v[t, y, x + 1]) - np.float64(v[t, y, x])
-                        if rc:
-                            g2 = np.float64(v[t, y, x + 2]) - np.float64(v[t, y, x + 1]) if x + 2 < W else 0.0
-                            g1 = 0.5 * (g1 + g2)
+                if axis == 0:
+                    step_x = 2 if rc else 1
+                    n = W // 2 if rc else W - 1
+                    if rc:
+                        changed = _gradient_row(v[t, y], empty, 2, n, theta[0, y], g_prev[0, y], tern[0, y],
+                                                hysteresis, True, g_new, t_new)
                     else:
-                        if y == H - 1 or (rc and y % 2 == 1):
-                            continue
-                        g1 = np.float64(v[t, y + 1, x]) - np.float64(v[t, y, x])
-                        if rc:
-                            g2 = np.float64(v[t, y + 2, x]) - np.float64(v[t, y + 1, x]) if y + 2 < H else 0.0
-                            g1 = 0.5 * (g1 + g2)
-                    th = theta[axis, y, x]
-                    t_old = tern[axis, y, x]
-                    t_new = _ternary_hysteresis(g1, th, t_old, hysteresis)
-                    if t_new != t_old:
-                        s = _crossing(g_prev[axis, y, x], g1, t_old, t_new, th, hysteresis) if interpolate else 1.0
-                        te = ta + s * dt
-                        _push(y, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
-                              np.int64(math.floor(te * 1e6 + 0.5)), t, y * W + x,
-                              table[t_old + 1, t_new + 1], axis)
-                        tern[axis, y, x] = t_new
-                    g_prev[axis, y, x] = g1
+                        changed = _gradient_row(v[t, y], empty, 1, n, theta[0, y], g_prev[0, y], tern[0, y],
+                                                hysteresis, False, g_new, t_new)
+                else:
+                    if y == H - 1 or (rc and y % 2 == 1):
+                        continue
+                    step_x = 1
+                    n = W
+                    if rc:
+                        # Mean of G_Y(y) and G_Y(y + 1) = (v[y + 2] - v[y]) / 2 (G_Y of the last row is 0).
+                        there = v[t, y + 2] if y + 2 < H else v[t, y + 1]
+                        changed = _gradient_row(v[t, y], there, 1, n, theta[1, y], g_prev[1, y], tern[1, y],
+                                                hysteresis, True, g_new, t_new)
+                    else:
+                        changed = _gradient_row(v[t, y], v[t, y + 1], 1, n, theta[1, y], g_prev[1, y],
+                                                tern[1, y], hysteresis, False, g_new, t_new)
+                if changed:
+                    for i in range(n):
+                        x = i * step_x
+                        old = tern[axis, y, x]
+                        new = t_new[i]
+                        if new != old:
+                            th = theta[axis, y, x]
+                            s = _crossing(g_prev[axis, y, x], g_new[i], old, new, th, hysteresis) \
+                                if interpolate else 1.0
+                            te = ta + s * dt
+                            _push(y, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
+                                  np.int64(math.floor(te * 1e6 + 0.5)), t, y * W + x, table[old + 1, new + 1], axis)
+                            tern[axis, y, x] = new
+                for i in range(n):
+                    g_prev[axis, y, i * step_x] = g_new[i]
     return count
 
 

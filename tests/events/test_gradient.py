@@ -172,3 +172,14 @@ def test_hysteresis_suppresses_chatter_near_threshold():
     assert len(plain) == len(g) - 1 and len(hyst) == 0  # the first sample already sets T = 1
     with pytest.raises(ValueError, match="hysteresis"):
         GradientEmulator((1, 2), thresholds=(0.1,), hysteresis=0.1)
+
+
+@pytest.mark.parametrize("rc", [False, True])
+def test_emulator_state_equals_the_numpy_definition_on_every_row(rc):
+    """Including the last row and column (G = 0 there) and the last RC pair."""
+    rng = np.random.default_rng(7)
+    frames = rng.random((6, 6, 8))
+    em = GradientEmulator((6, 8), thresholds=(0.02, 0.05, 0.1), rc=rc)
+    for k in range(6):
+        em.process(frames[k:k + 1], [0.1 * k])
+        assert np.array_equal(em.state, em.ternary_of(frames[k]))
