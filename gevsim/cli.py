@@ -111,11 +111,15 @@ def cmd_emulate(args) -> int:
     print(f"gevsim: {summary['width']}x{summary['height']}, {summary['steps']} steps of "
           f"{config.step_s * 1e6:g} us ({summary['duration_s'] * 1e3:g} ms), {summary['frames']} ground-truth frames;"
           f" pixel model {summary['pixel_steps_per_s'] / 1e6:.1f} M pixel-steps/s", file=sys.stderr)
-    print(f"{'stream':22s} {'events':>10s} {'events/s':>12s} {'per pixel/s':>12s} {'emulator s':>10s}")
-    pixels = summary["width"] * summary["height"]
+    from gevsim.emulation.summary import summarize
+
+    stats = summarize(args.out)
+    print(f"{'stream':20s} {'events':>10s} {'events/s':>11s} {'per pixel/s':>11s} {'p/frame':>8s} "
+          f"{'emulator s':>10s}")
     for (name, count), seconds in zip(summary["counts"].items(), summary["event_s"].values()):
-        rate = summary["rates_hz"][name]
-        print(f"{name:22s} {count:10d} {rate:12.4g} {rate / pixels:12.4g} {seconds:10.2f}")
+        st = stats[name]
+        print(f"{name:20s} {count:10d} {st['rates_hz']['total']:11.4g} {st['rates_hz']['per_pixel_hz']:11.4g} "
+              f"{st['event_probability']:8.3f} {seconds:10.2f}")
     print(f"gevsim: wrote {args.out} in {summary['total_s']:.1f} s", file=sys.stderr)
     return 0
 

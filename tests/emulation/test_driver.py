@@ -131,3 +131,19 @@ def test_config_errors_name_the_key(tmp_path):
     path.write_text('[emulation]\nscene = "office"\nstep_us = 1\n')
     with pytest.raises(ConfigError, match=r"emulation\.step_us.*did you mean 'step_s'"):
         load_config(path)
+
+
+def test_summary_reads_back_in_windows_the_same_statistics(tmp_path, monkeypatch):
+    from gevsim.emulation import summary as summary_mod
+    from gevsim.events import event_probability
+
+    run(load_config(config(tmp_path, frame_rate_hz=2000.0)), tmp_path / "o.h5", cache_dir=tmp_path / "c")
+    monkeypatch.setattr(summary_mod, "BATCH_FRAMES", 3)  # several windows
+    stats = summary_mod.summarize(tmp_path / "o.h5")
+    with EventReader(tmp_path / "o.h5") as r:
+        frame_t = r.frames("log_photocurrent")[1]
+        for stream in STREAMS:
+            ev = r.read(stream)
+            p = event_probability(ev, frame_t, width=32, height=24)
+            assert stats[stream]["count"] == len(ev)
+            assert stats[stream]["event_probability"] == pytest.approx(p.mean())
