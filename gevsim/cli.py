@@ -17,13 +17,13 @@ from gevsim.errors import ConfigError
 log = logging.getLogger("gevsim")
 
 
-def _progress(desc: str, enabled: bool):
+def _progress(desc: str, enabled: bool, unit: str = "pose"):
     """A ``progress(done, total)`` callback drawing a tqdm bar (or nothing)."""
     if not enabled:
         return None, lambda: None
     from tqdm import tqdm
 
-    bar = tqdm(desc=desc, unit="pose", leave=True, dynamic_ncols=True)
+    bar = tqdm(desc=desc, unit=unit, leave=True, dynamic_ncols=True)
 
     def update(done: int, total: int) -> None:
         bar.total = total
@@ -100,7 +100,7 @@ def cmd_emulate(args) -> int:
     from gevsim.emulation import load_config, run
 
     config = load_config(args.config)
-    update, close = _progress("emulate", not args.quiet)
+    update, close = _progress("emulate", not args.quiet, unit="chunk")
     render_update, render_close = _progress("render", not args.quiet)
     try:
         summary = run(config, args.out, cache_dir=args.cache, flicker=not args.no_flicker, noise=not args.no_noise,
