@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from gevsim.events import _kernels
+from gevsim.timebase import check_chunk
 
 
 class SampledSignal:
@@ -25,24 +26,11 @@ class SampledSignal:
 
     def steps(self, signal, t_s, *, name: str = "signal"):
         """Validate a chunk; return (signal (T, H, W), step starts, step ends, first-sample flag)."""
-        v = np.asarray(signal)
-        t = np.asarray(t_s, dtype=np.float64).reshape(-1)
-        if v.ndim != 3 or v.shape[1:] != self.shape:
-            raise ValueError(f"{name} must have shape (T, {self.shape[0]}, {self.shape[1]}), got {v.shape}")
-        if len(t) != v.shape[0]:
-            raise ValueError(f"t_s has {len(t)} times but {name} has {v.shape[0]} samples")
-        if v.dtype.kind != "f":
-            v = v.astype(np.float64)
-        if not np.all(np.isfinite(t)):
-            raise ValueError("t_s must be finite")
+        v, t, prev = check_chunk(signal, t_s, shape=self.shape, name=name, after=self.t_s)
         if v.size and not np.isfinite(v).all():
             raise ValueError(f"{name} must be finite: {int((~np.isfinite(v)).sum())} values are NaN or infinite")
-        prev = np.concatenate([[self.t_s if self.t_s is not None else -np.inf], t[:-1]]) if len(t) else t
-        if np.any(t <= prev):
-            k = int(np.argmax(t <= prev))
-            raise ValueError(f"time must increase strictly: sample {k} at t = {t[k]!r} s follows {prev[k]!r} s")
         first = self.t_s is None
-        return np.ascontiguousarray(v), prev, t, first
+        return v, prev, t, first
 
 
 def run_with_buffers(call, state: tuple, *, nblocks: int, n_steps: int, estimate: int, dtype, width: int):

@@ -17,6 +17,7 @@ from scipy.constants import elementary_charge
 from gevsim.pixel import _kernels
 from gevsim.pixel.noise import fixed_pattern, output_noise_poles
 from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
+from gevsim.timebase import check_chunk
 
 
 class Photoreceptor:
@@ -80,24 +81,11 @@ class Photoreceptor:
         t_s : (T,) strictly increasing end times of the steps, after the current time.
         """
         p = self.params
-        current = np.asarray(photocurrent_a)
-        t = np.asarray(t_s, dtype=np.float64).reshape(-1)
-        if current.ndim != 3 or current.shape[1:] != self.shape:
-            raise ValueError(f"photocurrent must have shape (T, {self.shape[0]}, {self.shape[1]}), got {current.shape}")
-        if len(t) != current.shape[0]:
-            raise ValueError(f"t_s has {len(t)} times but photocurrent has {current.shape[0]} steps")
+        current, t, prev = check_chunk(photocurrent_a, t_s, shape=self.shape, name="photocurrent", after=self.t_s)
         if len(t) == 0:
             return np.zeros((0,) + self.shape, np.float32)
-        if not np.all(np.isfinite(t)):
-            raise ValueError("t_s must be finite")
-        dt = np.diff(np.concatenate([[self.t_s], t]))
-        if np.any(dt <= 0):
-            k = int(np.argmax(dt <= 0))
-            raise ValueError(f"time must increase strictly: step {k} ends at t = {t[k]!r} s, "
-                             f"after {self.t_s if k == 0 else t[k - 1]!r} s")
+        dt = t - prev
         flat = current.reshape(len(t), -1)
-        if flat.dtype not in (np.float32, np.float64):
-            flat = flat.astype(np.float64)
         v1, v2, fn = self.v1.copy(), self.v2.copy(), self.fn.copy()
         if not self.started:
             first = flat[0].astype(np.float64) * self.gain + self.dark_a
