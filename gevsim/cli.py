@@ -1,4 +1,4 @@
-"""Command line: ``gevsim info``, ``gevsim scenes``, ``gevsim render``, ``gevsim emulate``.
+"""Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
 library. Bad input prints one line naming the file and key and exits with
@@ -127,6 +127,8 @@ def cmd_emulate(args) -> int:
 def _emulate_frames(args) -> int:
     import numpy as np
 
+    from gevsim.emulation.config import STREAMS
+    from gevsim.events import PAPER_THRESHOLDS, GradientEmulator
     from gevsim.events import frames as frame_mode
     from gevsim.io import EventWriter
 
@@ -148,12 +150,36 @@ def _emulate_frames(args) -> int:
             wr.append_frame("intensity", frames[k].astype(np.float32), int(round(t * 1e6)))
         for name, events in streams.items():
             wr.append(name, events)
+        for name, rc in (("gradient", False), ("gradient_rc", True)):
+            if STREAMS[name] in streams:  # what decoding and reconstruction start from
+                em = GradientEmulator((h, w), thresholds=PAPER_THRESHOLDS, rc=rc, interpolate=False)
+                wr.write_array(f"/thresholds/{name}", em.theta.astype(np.float32))
+                wr.write_array(f"/initial_state/{name}", em.ternary_of(frames[0]))
         wr.close(t_end_us=int(round(t_s[-1] * 1e6)))
     duration = float(t_s[-1] - t_s[0])
     print(f"{'stream':22s} {'events':>10s} {'events/s':>12s}")
     for name, events in streams.items():
         print(f"{name:22s} {len(events):10d} {len(events) / duration:12.4g}")
     print(f"gevsim: {len(frames)} frames {w}x{h} from {source}; wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+def cmd_reconstruct(args) -> int:
+    from gevsim.reconstruct.output import write_reconstructions
+    from gevsim.reconstruct.runner import reconstruct_file
+
+    methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
+    results, gt, tone = [], None, None
+    for method in methods:
+        base, rc = (method[:-3], True) if method.endswith("_rc") else (method, False)
+        rec, gt, tone = reconstruct_file(args.file, base, mean=args.mean, rc=rc, c=args.c, contrast=args.contrast)
+        results.append(rec)
+    settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast}
+    summary = write_reconstructions(args.out, args.file, results, gt, tone, settings=settings)
+    print(f"{'method':16s} {'MSE':>8s} {'SSIM':>7s} {'PSNR dB':>8s}   ({summary['frames']} frames)")
+    for name, m in summary["methods"].items():
+        print(f"{name:16s} {m['mse']:8.4f} {m['ssim']:7.3f} {m['psnr']:8.2f}")
+    print(f"gevsim: wrote {args.out}", file=sys.stderr)
     return 0
 
 
@@ -196,6 +222,17 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--cache", metavar="DIR", help="basis image cache")
     e.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     e.set_defaults(func=cmd_emulate)
+
+    c = sub.add_parser("reconstruct", help="reconstruct frames from an emulation file and score them")
+    c.add_argument("file", help="an HDF5 file written by `gevsim emulate`")
+    c.add_argument("--method", action="append", required=True,
+                   help="dct, sor (gradient events; add _rc for the resolution-compressed stream), direct, "
+                        "high_pass, complementary (brightness events); repeat or comma-separate")
+    c.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    c.add_argument("--mean", default="ground-truth", help="level: ground-truth (papers' protocol) or photodiode")
+    c.add_argument("--c", type=float, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")
+    c.add_argument("--contrast", type=float, default=0.2, help="contrast step of a brightness event (ln units)")
+    c.set_defaults(func=cmd_reconstruct)
     return parser
 
 

@@ -141,6 +141,8 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
                 tick = time.perf_counter()
                 events = em.process(v, t_end)
                 event_s[name] += time.perf_counter() - tick
+                if c == 0 and hasattr(em, "initial_state"):  # decoding starts from it
+                    wr.write_array(f"/initial_state/{name}", em.initial_state)
                 wr.append(STREAMS[name], events)
                 counts[STREAMS[name]] += len(events)
             if progress:
@@ -181,3 +183,7 @@ def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):
             wr.append_frame("aps", aps.read(electrons, config.aps_exposure_s, rng=aps_rng), t_us)
     if len(frame_t):
         wr.set_attrs("/frames", units="ln(A) for log_photocurrent*, DN for aps")
+    if aps is not None and len(frame_t) > 1:
+        p = aps.params
+        wr.set_attrs("/frames/aps", offset_dn=p.offset_dn, system_gain_dn_per_e=p.system_gain_dn_per_e,
+                     bit_depth=p.bit_depth, exposure_s=config.aps_exposure_s)

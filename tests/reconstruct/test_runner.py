@@ -1,0 +1,70 @@
+"""`gevsim reconstruct` on a tiny emulation: outputs, scores, protocol, errors."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gevsim.cli import main
+from gevsim.emulation import load_config, run
+from gevsim.reconstruct.runner import reconstruct_file
+from gevsim.reconstruct.tonemap import ToneMap
+
+DATA = Path(__file__).parents[1] / "data"
+
+
+@pytest.fixture(scope="module")
+def emulation(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("emu")
+    cfg = tmp / "run.toml"
+    cfg.write_text(f'[emulation]\nscene = "{DATA / "card.toml"}"\nsensor = "davis346"\nseed = 2\nstep_s = 2e-5\n'
+                   'frame_rate_hz = 1000.0\naps = true\naps_exposure_s = 5e-4\n'
+                   '[render]\nwidth = 48\nheight = 36\n')
+    run(load_config(cfg), tmp / "run.h5", cache_dir=tmp / "cache", noise=False)
+    return tmp / "run.h5"
+
+
+def test_tone_map_is_fixed_by_the_ground_truth():
+    gt = np.linspace(-30, -20, 1000).reshape(10, 10, 10)
+    tone = ToneMap.from_ground_truth(gt)
+    assert tone(np.array([tone.low, tone.high, tone.low - 5]))[:].tolist() == [0.0, 1.0, 0.0]
+    with pytest.raises(ValueError, match="low < high"):
+        ToneMap(1.0, 1.0)
+
+
+def test_gradient_reconstruction_of_a_static_card_scores_well(emulation):
+    rec, gt, tone = reconstruct_file(emulation, "dct")
+    assert rec.frames.shape == gt.shape
+    # Each reconstruction carries the ground-truth mean (the papers' protocol).
+    np.testing.assert_allclose(rec.frames.mean(axis=(1, 2)), gt.mean(axis=(1, 2)))
+    assert rec.mean_metrics()["ssim"] > 0.5
+    sor, _, _ = reconstruct_file(emulation, "sor")
+    assert abs(sor.mean_metrics()["ssim"] - rec.mean_metrics()["ssim"]) < 0.2
+
+
+def test_photodiode_level_is_the_log_of_the_mean_irradiance(emulation):
+    rec, gt, _ = reconstruct_file(emulation, "dct", mean="photodiode")
+    expect = np.log(np.exp(gt).mean(axis=(1, 2)))
+    np.testing.assert_allclose(rec.frames.mean(axis=(1, 2)), expect)
+
+
+def test_cli_writes_frames_metrics_and_side_by_side(emulation, tmp_path, capsys):
+    out = tmp_path / "rec"
+    assert main(["reconstruct", str(emulation), "--method", "dct,sor_rc", "--method", "direct",
+                 "--method", "complementary", "--out", str(out)]) == 0
+    table = capsys.readouterr().out
+    assert "dct" in table and "complementary" in table
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics["summary"]["methods"]) == {"dct", "sor_rc", "direct", "complementary"}
+    rows = (out / "metrics.csv").read_text().splitlines()
+    assert rows[0] == "method,frame,t_us,mse,ssim,psnr" and len(rows) == 1 + 4 * metrics["summary"]["frames"]
+    assert (out / "side_by_side.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert len(list((out / "frames" / "dct").glob("*.png"))) == metrics["summary"]["frames"]
+
+
+@pytest.mark.parametrize("args, text", [(["--method", "dtc"], "did you mean 'dct'"),
+                                        (["--method", "dct", "--mean", "median"], "unknown mean")])
+def test_bad_arguments(emulation, tmp_path, capsys, args, text):
+    assert main(["reconstruct", str(emulation), "--out", str(tmp_path / "r")] + args) == 2
+    assert text in capsys.readouterr().err and not (tmp_path / "r").exists()
