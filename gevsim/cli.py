@@ -172,9 +172,11 @@ def cmd_reconstruct(args) -> int:
     results, gt, tone = [], None, None
     for method in methods:
         base, rc = (method[:-3], True) if method.endswith("_rc") else (method, False)
-        rec, gt, tone = reconstruct_file(args.file, base, mean=args.mean, rc=rc, c=args.c, contrast=args.contrast)
+        rec, gt, tone = reconstruct_file(args.file, base, mean=args.mean, rc=rc, c=args.c, contrast=args.contrast,
+                                         reference=args.reference)
         results.append(rec)
-    settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast}
+    settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast,
+                "reference": args.reference}
     summary = write_reconstructions(args.out, args.file, results, gt, tone, settings=settings)
     print(f"{'method':16s} {'MSE':>8s} {'SSIM':>7s} {'PSNR dB':>8s}   ({summary['frames']} frames)")
     for name, m in summary["methods"].items():
@@ -232,6 +234,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--mean", default="ground-truth", help="level: ground-truth (papers' protocol) or photodiode")
     c.add_argument("--c", type=float, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")
     c.add_argument("--contrast", type=float, default=0.2, help="contrast step of a brightness event (ln units)")
+    c.add_argument("--reference", default="flicker",
+                   help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
     c.set_defaults(func=cmd_reconstruct)
     return parser
 

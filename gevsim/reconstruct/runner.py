@@ -44,9 +44,16 @@ class Reconstruction:
         return {k: float(np.mean([m[k] for m in self.metrics if np.isfinite(m[k])])) for k in keys}
 
 
-def ground_truth(reader: EventReader) -> tuple[np.ndarray, np.ndarray, bool]:
-    """(frames, t_us, is_log): log photocurrent of an emulation, or frame mode's intensities."""
-    for name, is_log in (("log_photocurrent", True), ("intensity", False)):
+REFERENCES = {"flicker": "log_photocurrent", "no-flicker": "log_photocurrent_no_flicker"}
+
+
+def ground_truth(reader: EventReader, reference: str = "flicker") -> tuple[np.ndarray, np.ndarray, bool]:
+    """(frames, t_us, is_log): the log photocurrent of an emulation (as lit at each instant, or
+    with every lamp at its mean for ``reference="no-flicker"``), or frame mode's intensities."""
+    if reference not in REFERENCES:
+        raise ConfigError(f"unknown reference {reference!r}{suggest(reference, REFERENCES)}; "
+                          f"choose from {', '.join(REFERENCES)}", key="--reference")
+    for name, is_log in ((REFERENCES[reference], True), ("intensity", False)):
         if name in reader.frame_names:
             images, t_us = reader.frames(name)
             return images.astype(np.float64), np.asarray(t_us, np.int64), is_log
@@ -60,15 +67,20 @@ def _level(gt: np.ndarray, is_log: bool, mean: str) -> float:
 
 
 def reconstruct_file(path: str | Path, method: str, *, mean: str = "ground-truth", rc: bool = False,
-                     c: float = 3.6, contrast: float = 0.2) -> tuple[Reconstruction, np.ndarray, ToneMap]:
-    """Reconstruct at every ground-truth frame time; returns (reconstruction, ground truth, tone map)."""
+                     c: float = 3.6, contrast: float = 0.2,
+                     reference: str = "flicker") -> tuple[Reconstruction, np.ndarray, ToneMap]:
+    """Reconstruct at every ground-truth frame time; returns (reconstruction, ground truth, tone map).
+
+    ``reference="no-flicker"`` scores against the scene with every lamp at its mean, the
+    reference of the flicker-robustness question (what is in the scene, not the lamp phase).
+    """
     if method not in METHODS:
         raise ConfigError(f"unknown method {method!r}{suggest(method, METHODS)}; choose from {', '.join(METHODS)}",
                           key="--method")
     if mean not in MEANS:
         raise ConfigError(f"unknown mean {mean!r}; choose from {', '.join(MEANS)}", key="--mean")
     with EventReader(path) as r:
-        gt, t_us, is_log = ground_truth(r)
+        gt, t_us, is_log = ground_truth(r, reference)
         if method in GRADIENT_METHODS:
             rec = _gradient(r, gt, t_us, method, rc=rc, c=c)
         else:
@@ -108,10 +120,9 @@ def _brightness(r: EventReader, gt, t_us, method, *, contrast, is_log) -> Recons
         raise ConfigError("holds no brightness event stream (emulate with 'dvs')", source=str(r.path))
     events = r.read("events", None, int(t_us[-1]) + 1)
     h, w = gt.shape[1:]
-    start = gt[0] if is_log else np.log(gt[0] + 1.0 / 255)
-    if method == "direct":
+    if method == "direct":  # events only: starts from a flat image, like the filters
         frames = brightness.direct_integration(events, t_us, width=w, height=h, contrast_on=contrast,
-                                               contrast_off=contrast, initial=start)
+                                               contrast_off=contrast)
     elif method == "high_pass":
         frames = brightness.high_pass_filter(events, t_us, width=w, height=h, contrast=contrast)
     else:

@@ -19,7 +19,7 @@ def emulation(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("emu")
     cfg = tmp / "run.toml"
     cfg.write_text(f'[emulation]\nscene = "{DATA / "card.toml"}"\nsensor = "davis346"\nseed = 2\nstep_s = 2e-5\n'
-                   'frame_rate_hz = 1000.0\naps = true\naps_exposure_s = 5e-4\n'
+                   'frame_rate_hz = 1500.0\naps = true\naps_exposure_s = 5e-4\n'
                    '[render]\nwidth = 48\nheight = 36\n')
     run(load_config(cfg), tmp / "run.h5", cache_dir=tmp / "cache", noise=False)
     return tmp / "run.h5"
@@ -68,3 +68,21 @@ def test_cli_writes_frames_metrics_and_side_by_side(emulation, tmp_path, capsys)
 def test_bad_arguments(emulation, tmp_path, capsys, args, text):
     assert main(["reconstruct", str(emulation), "--out", str(tmp_path / "r")] + args) == 2
     assert text in capsys.readouterr().err and not (tmp_path / "r").exists()
+
+
+def test_no_flicker_reference_is_the_scene_with_lamps_at_their_mean(emulation):
+    from gevsim.io import EventReader
+
+    rec, gt, _ = reconstruct_file(emulation, "dct", reference="no-flicker")
+    with EventReader(emulation) as r:
+        flicker = r.frames("log_photocurrent")[0]
+        steady = r.frames("log_photocurrent_no_flicker")[0]
+    np.testing.assert_allclose(gt, steady)
+    # The steady reference differs from the instantaneous one by the lamp's waveform only: one
+    # lamp lights everything in the card scene, so where the photocurrent dwarfs the dark
+    # current the difference is one ln offset per frame.
+    bright = steady[0] > np.median(steady[0])
+    offset = (flicker - steady)[:, bright]
+    assert np.all(offset.std(axis=1) < 0.01) and offset.mean(axis=1).std() > 0.1
+    with pytest.raises(ValueError, match="unknown reference"):
+        reconstruct_file(emulation, "dct", reference="steady")
