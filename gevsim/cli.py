@@ -177,10 +177,14 @@ def cmd_reconstruct(args) -> int:
         results.append(rec)
     settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast,
                 "reference": args.reference}
-    summary = write_reconstructions(args.out, args.file, results, gt, tone, settings=settings)
-    print(f"{'method':16s} {'MSE':>8s} {'SSIM':>7s} {'PSNR dB':>8s}   ({summary['frames']} frames)")
+    summary = write_reconstructions(args.out, args.file, results, gt, tone, settings=settings,
+                                    bits_per_event=args.bits_per_event)
+    print(f"{'method':16s} {'MSE':>8s} {'SSIM':>7s} {'PSNR dB':>8s} {'events/s':>10s} {'p/frame':>8s} "
+          f"{'Mbit/s':>8s}   ({summary['frames']} frames)")
     for name, m in summary["methods"].items():
-        print(f"{name:16s} {m['mse']:8.4f} {m['ssim']:7.3f} {m['psnr']:8.2f}")
+        b = summary["bandwidth"][name]
+        print(f"{name:16s} {m['mse']:8.4f} {m['ssim']:7.3f} {m['psnr']:8.2f} {b['events_per_s']:10.4g} "
+              f"{b['event_probability']:8.3f} {b['bits_per_s'] / 1e6:8.3f}")
     print(f"gevsim: wrote {args.out}", file=sys.stderr)
     return 0
 
@@ -236,6 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--contrast", type=float, default=0.2, help="contrast step of a brightness event (ln units)")
     c.add_argument("--reference", default="flicker",
                    help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
+    c.add_argument("--bits-per-event", type=float, default=32.0, help="for the bandwidth column (default 32)")
     c.set_defaults(func=cmd_reconstruct)
     return parser
 

@@ -49,8 +49,14 @@ def side_by_side(path: Path, gt01: np.ndarray, recs01: dict, t_us: np.ndarray, *
 
 
 def write_reconstructions(out: str | Path, source: str | Path, results: list, gt: np.ndarray,
-                          tone: ToneMap, *, settings: dict) -> dict:
-    """Write every method's frames and scores; returns the summary (also manifest.json)."""
+                          tone: ToneMap, *, settings: dict, bits_per_event: float = 32.0) -> dict:
+    """Write every method's frames and scores, with the bandwidth of the event stream each
+    method used (events/s, event probability per frame, bits/s at ``bits_per_event``);
+    returns the summary (also manifest.json)."""
+    from gevsim.emulation.summary import summarize
+    from gevsim.metrics import bits_per_second
+
+    streams = summarize(source)
     gt01 = tone(gt)
     recs01 = {r.method + ("_rc" if r.stream == "gradient_rc_events" else ""): tone(r.frames) for r in results}
     per_frame = {name: r.metrics for name, r in zip(recs01, results)}
@@ -61,7 +67,17 @@ def write_reconstructions(out: str | Path, source: str | Path, results: list, gt
         "tone_map": {"low": tone.low, "high": tone.high},
         "frames": len(gt),
         "methods": {name: r.mean_metrics() for name, r in zip(recs01, results)},
+        "bandwidth": {},
+        "bits_per_event": bits_per_event,
     }
+    for name, r in zip(recs01, results):
+        st = streams[r.stream]
+        summary["bandwidth"][name] = {
+            "stream": r.stream,
+            "events_per_s": st["rates_hz"]["total"],
+            "event_probability": st["event_probability"],
+            "bits_per_s": float(bits_per_second(st["rates_hz"]["total"], bits_per_event=bits_per_event)),
+        }
     with staged_dir(out) as stage:
         for name, frames in recs01.items():
             for k, img in enumerate(frames):

@@ -61,6 +61,14 @@ def test_cli_writes_frames_metrics_and_side_by_side(emulation, tmp_path, capsys)
     assert rows[0] == "method,frame,t_us,mse,ssim,psnr" and len(rows) == 1 + 4 * metrics["summary"]["frames"]
     assert (out / "side_by_side.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(list((out / "frames" / "dct").glob("*.png"))) == metrics["summary"]["frames"]
+    from gevsim.io import EventReader
+
+    with EventReader(emulation) as r:
+        n_gradient, duration = len(r.read("gradient_events")), r.t_end_us / 1e6
+    band = metrics["summary"]["bandwidth"]
+    assert band["dct"]["stream"] == "gradient_events" and band["sor_rc"]["stream"] == "gradient_rc_events"
+    assert band["dct"]["events_per_s"] == pytest.approx(n_gradient / duration)
+    assert band["dct"]["bits_per_s"] == pytest.approx(32 * n_gradient / duration)
 
 
 @pytest.mark.parametrize("args, text", [(["--method", "dtc"], "did you mean 'dct'"),
