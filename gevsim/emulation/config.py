@@ -24,6 +24,12 @@ thresholds_ln = [0.05, 0.1, 0.2]   # assigned by (x + y) mod n
 [csdvs]
 surround_length_px = 2.0
 surround_tau_s = 1e-3
+
+[light]                        # changes that need no re-rendering (light transport is linear)
+scale = 1.0                    # every light group's radiance times this (light level)
+[light.groups.ceiling]         # per light group of the scene
+scale = 1.0
+waveform = { type = "pwm", frequency_hz = 300.0, duty = 0.5 }
 ```
 """
 
@@ -40,7 +46,7 @@ EMULATORS = ("dvs", "gradient", "gradient_rc", "csdvs")
 #: HDF5 stream of each emulator.
 STREAMS = {"dvs": "events", "gradient": "gradient_events", "gradient_rc": "gradient_rc_events",
            "csdvs": "csdvs_events"}
-TABLES = ("emulation", "render", "gradient", "csdvs")
+TABLES = ("emulation", "render", "gradient", "csdvs", "light")
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
                   "aps", "aps_exposure_s")
 RENDER_KEYS = ("width", "height", "spp", "seed", "max_px_per_pose")
@@ -62,8 +68,30 @@ class EmulationConfig:
     thresholds_ln: tuple[float, ...] = (0.05, 0.1, 0.2)
     surround_length_px: float = 2.0
     surround_tau_s: float = 1e-3
+    light_scale: float = 1.0
+    group_scale: dict = field(default_factory=dict)  # light group -> radiance factor
+    group_waveform: dict = field(default_factory=dict)  # light group -> waveform spec table
     source: str = ""
     text: str = ""
+
+    def to_toml(self) -> str:
+        """The config as TOML (what an emulation file records; programmatic configs too)."""
+        import tomli_w
+
+        em = {k: getattr(self, k) for k in ("scene", "sensor", "seed", "step_s", "chunk_steps", "frame_rate_hz",
+                                             "aps", "aps_exposure_s")}
+        em["emulators"] = list(self.emulators)
+        if self.duration_s is not None:
+            em["duration_s"] = self.duration_s
+        groups = {g: {"scale": self.group_scale.get(g, 1.0), **({"waveform": self.group_waveform[g]}
+                                                                 if g in self.group_waveform else {})}
+                  for g in set(self.group_scale) | set(self.group_waveform)}
+        return tomli_w.dumps({
+            "emulation": em, "render": dict(self.render),
+            "gradient": {"thresholds_ln": list(self.thresholds_ln)},
+            "csdvs": {"surround_length_px": self.surround_length_px, "surround_tau_s": self.surround_tau_s},
+            "light": {"scale": self.light_scale, "groups": groups},
+        })
 
 
 def load_config(path: str | Path) -> EmulationConfig:
@@ -106,6 +134,22 @@ def load_config(path: str | Path) -> EmulationConfig:
         r.fail("gradient.thresholds_ln", f"expected a list of positive numbers, got {thresholds!r}")
     cs = r.table(raw, "csdvs")
     check_keys(cs, ("surround_length_px", "surround_tau_s"), source=src, where="csdvs")
+    light = r.table(raw, "light")
+    check_keys(light, ("scale", "groups"), source=src, where="light")
+    groups = r.table(light, "groups", "light.")
+    group_scale, group_waveform = {}, {}
+    for name, spec in groups.items():
+        where = f"light.groups.{name}"
+        if not isinstance(spec, dict):
+            r.fail(where, f"expected a table, got {spec!r}")
+        check_keys(spec, ("scale", "waveform"), source=src, where=where)
+        if "scale" in spec:
+            group_scale[name] = float(r.number(spec, "scale", where, minimum=0.0))
+        if "waveform" in spec:
+            from gevsim.illumination import from_spec
+
+            from_spec(spec["waveform"], source=src, key=f"{where}.waveform")  # validate now
+            group_waveform[name] = dict(spec["waveform"])
     aps = em.get("aps", False)
     if not isinstance(aps, bool):
         r.fail("emulation.aps", f"expected true or false, got {aps!r}")
@@ -125,6 +169,9 @@ def load_config(path: str | Path) -> EmulationConfig:
         thresholds_ln=tuple(float(t) for t in thresholds),
         surround_length_px=float(r.number(cs, "surround_length_px", "csdvs", 2.0, positive=True)),
         surround_tau_s=float(r.number(cs, "surround_tau_s", "csdvs", 1e-3, minimum=0.0)),
+        light_scale=float(r.number(light, "scale", "light", 1.0, positive=True)),
+        group_scale=group_scale,
+        group_waveform=group_waveform,
         source=src,
         text=path.read_text(),
     )

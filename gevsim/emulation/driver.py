@@ -20,7 +20,8 @@ from scipy.constants import elementary_charge
 
 from gevsim.emulation.config import STREAMS, EmulationConfig, check_consistency
 from gevsim.events import BrightnessEmulator, CenterSurroundEmulator, GradientEmulator
-from gevsim.illumination import weights_at
+from gevsim.errors import ConfigError, suggest
+from gevsim.illumination import from_spec, weights_at
 from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
@@ -55,8 +56,6 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
     if not noise:
         preset = preset.ideal()
     if config.aps and preset.aps is None:
-        from gevsim.errors import ConfigError
-
         raise ConfigError(f"sensor preset {preset.name!r} has no [aps] table", source=config.source,
                           key="emulation.aps")
     scene = MitsubaScene(manifest)
@@ -68,8 +67,17 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
     r = manifest.render
     cos4 = cos4_map(r.width, r.height, fov_x_deg=manifest.fov_deg)
     y = basis.images[..., 0] if basis.images.shape[-1] == 1 else luminance(basis.images)
-    current = (y * factors[None, :, None, None] * cos4[None, None]).astype(np.float64)
-    waveforms = basis.waveforms if flicker else tuple(w.constant() for w in basis.waveforms)
+    names = manifest.group_names
+    for group in set(config.group_scale) | set(config.group_waveform):
+        if group not in names:
+            raise ConfigError(f"scene {manifest.name!r} has no light group {group!r}{suggest(group, names)}",
+                              source=config.source, key=f"light.groups.{group}")
+    scale = config.light_scale * np.array([config.group_scale.get(g, 1.0) for g in names])
+    current = (y * (factors * scale)[None, :, None, None] * cos4[None, None]).astype(np.float64)
+    waveforms = tuple(from_spec(config.group_waveform[g], source=config.source, key=f"light.groups.{g}.waveform")
+                      if g in config.group_waveform else w for g, w in zip(names, basis.waveforms))
+    if not flicker:
+        waveforms = tuple(w.constant() for w in waveforms)
     return Setup(manifest, preset, basis.times_s, current, waveforms, duration, scene.variant)
 
 
@@ -122,7 +130,8 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
              "scene_toml": _toml(m.raw), "emulators": list(emulators)}
     pixel_s = 0.0
     event_s = {n: 0.0 for n in emulators}
-    with EventWriter(out, width=w, height=h, config_toml=config.text, seed=config.seed, extra_attrs=extra) as wr:
+    with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
+                     extra_attrs=extra) as wr:
         for name in ("gradient", "gradient_rc"):
             if name in emulators:
                 wr.write_array(f"/thresholds/{name}", emulators[name].theta.astype(np.float32))

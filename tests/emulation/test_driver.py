@@ -147,3 +147,36 @@ def test_summary_reads_back_in_windows_the_same_statistics(tmp_path, monkeypatch
             p = event_probability(ev, frame_t, width=32, height=24)
             assert stats[stream]["count"] == len(ev)
             assert stats[stream]["event_probability"] == pytest.approx(p.mean())
+
+
+def test_light_overrides_need_no_rerender_and_act_linearly(tmp_path):
+    import dataclasses
+
+    base = load_config(config(tmp_path, sensor="ideal"))
+    run(base, tmp_path / "a.h5", cache_dir=tmp_path / "c")
+    brighter = dataclasses.replace(base, light_scale=2.0, text="")
+    run(brighter, tmp_path / "b.h5", cache_dir=tmp_path / "c")
+    with EventReader(tmp_path / "a.h5") as a, EventReader(tmp_path / "b.h5") as b:
+        la, lb = a.frames("log_photocurrent")[0], b.frames("log_photocurrent")[0]
+        assert "scale = 2.0" in b.config_toml
+    bright = la[0] > np.median(la[0])  # where the photocurrent dwarfs the dark current
+    np.testing.assert_allclose((lb - la)[:, bright], np.log(2.0), atol=2e-3)
+    steady = dataclasses.replace(base, group_waveform={"lamp": {"type": "dc"}}, text="")
+    s = run(steady, tmp_path / "s.h5", cache_dir=tmp_path / "c")
+    assert sum(s["counts"].values()) == 0  # static scene, steady lamp, ideal pixel
+    bad = dataclasses.replace(base, group_scale={"lamps": 0.5})
+    with pytest.raises(ConfigError, match="did you mean 'lamp'"):
+        run(bad, tmp_path / "x.h5", cache_dir=tmp_path / "c")
+
+
+def test_programmatic_config_round_trips_through_toml(tmp_path):
+    import dataclasses
+
+    cfg = dataclasses.replace(load_config(config(tmp_path)), light_scale=0.5, group_scale={"lamp": 0.25},
+                              group_waveform={"lamp": {"type": "pwm", "frequency_hz": 300.0, "duty": 0.5}})
+    path = tmp_path / "round.toml"
+    path.write_text(cfg.to_toml())
+    back = load_config(path)
+    for field in ("scene", "sensor", "seed", "step_s", "light_scale", "group_scale", "group_waveform",
+                  "thresholds_ln", "emulators"):
+        assert getattr(back, field) == getattr(cfg, field), field
