@@ -20,7 +20,7 @@ $(PY):
 
 $(STAMP): pyproject.toml | $(PY)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[plot,test]'
+	$(PY) -m pip install -q -e '.[plot,test,dask]'
 	touch $@
 
 llvm:

@@ -189,6 +189,47 @@ def cmd_reconstruct(args) -> int:
     return 0
 
 
+def cmd_study(args) -> int:
+    from gevsim.experiments.report import comparison_table, write_study_outputs
+    from gevsim.experiments.study import check_study_scenes, load_study, run_study
+
+    study = load_study(args.config)
+    check_study_scenes(study)
+    update, close = _progress(f"study {study.name}", not args.quiet, unit="run")
+    try:
+        rows = run_study(study, args.out, cache_dir=args.cache, progress=update, keep_files=args.keep_files)
+    finally:
+        close()
+    report = write_study_outputs(args.out, study, rows)
+    print(comparison_table(rows, study))
+    print(f"gevsim: {len(rows)} runs; report {report}", file=sys.stderr)
+    return 0
+
+
+def cmd_dataset(args) -> int:
+    from gevsim.experiments.dataset import generate, load_dataset_config
+    from gevsim.experiments.executors import make_executor
+
+    config = load_dataset_config(args.config)
+    if args.executor == "dask" and not args.verbose:  # distributed sets its loggers to INFO on import
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            pass  # make_executor says what to install
+        for name in [n for n in logging.root.manager.loggerDict if n.split(".")[0] == "distributed"]:
+            logging.getLogger(name).setLevel(logging.WARNING)
+    with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
+        update, close = _progress("dataset", not args.quiet, unit="seq")
+        try:
+            summary = generate(config, args.out, executor=executor, cache_dir=args.cache, progress=update)
+        finally:
+            close()
+    print(f"gevsim: {summary['sequences']} sequences: {summary['done']} made, {summary['skipped']} already done; "
+          f"{summary['events']} events ({', '.join(f'{k} {v}' for k, v in summary['counts'].items())}); "
+          f"wrote {args.out} in {summary['seconds']:.1f} s", file=sys.stderr)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     import gevsim
 
@@ -242,6 +283,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
     c.add_argument("--bits-per-event", type=float, default=32.0, help="for the bandwidth column (default 32)")
     c.set_defaults(func=cmd_reconstruct)
+
+    d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
+    d.add_argument("config", help="dataset config (see gevsim/experiments/dataset.py)")
+    d.add_argument("--out", required=True, help="output folder; finished sequences in it are kept")
+    d.add_argument("--executor", choices=("local", "dask"), default="local",
+                   help="local process pool (default) or Dask distributed")
+    d.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster)")
+    d.add_argument("--workers", type=int, metavar="N", help="worker processes (default: the number of CPUs)")
+    d.add_argument("--cache", metavar="DIR", help="basis image cache (shared by the workers)")
+    d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    d.set_defaults(func=cmd_dataset)
+
+    s = sub.add_parser("study", help="run (or resume) a study: sweeps with counterfactuals, plots and a report")
+    s.add_argument("config", help="a study config (experiments/*.toml)")
+    s.add_argument("--out", required=True, help="study folder (runs/ inside makes reruns resume)")
+    s.add_argument("--cache", metavar="DIR", help="basis image cache")
+    s.add_argument("--keep-files", action="store_true", help="keep every run's HDF5 files")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_study)
     return parser
 
 

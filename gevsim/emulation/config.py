@@ -20,6 +20,7 @@ spp = 4
 
 [gradient]
 thresholds_ln = [0.05, 0.1, 0.2]   # assigned by (x + y) mod n
+hysteresis_ln = 0.0                # comparator hysteresis (0: the paper's definition)
 
 [csdvs]
 surround_length_px = 2.0
@@ -66,6 +67,7 @@ class EmulationConfig:
     aps_exposure_s: float = 5e-4
     render: dict = field(default_factory=dict)
     thresholds_ln: tuple[float, ...] = (0.05, 0.1, 0.2)
+    hysteresis_ln: float = 0.0
     surround_length_px: float = 2.0
     surround_tau_s: float = 1e-3
     light_scale: float = 1.0
@@ -88,7 +90,7 @@ class EmulationConfig:
                   for g in set(self.group_scale) | set(self.group_waveform)}
         return tomli_w.dumps({
             "emulation": em, "render": dict(self.render),
-            "gradient": {"thresholds_ln": list(self.thresholds_ln)},
+            "gradient": {"thresholds_ln": list(self.thresholds_ln), "hysteresis_ln": self.hysteresis_ln},
             "csdvs": {"surround_length_px": self.surround_length_px, "surround_tau_s": self.surround_tau_s},
             "light": {"scale": self.light_scale, "groups": groups},
         })
@@ -126,7 +128,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         if key in render:
             r.number(render, key, "render", positive=True, integer=True)
     grad = r.table(raw, "gradient")
-    check_keys(grad, ("thresholds_ln",), source=src, where="gradient")
+    check_keys(grad, ("thresholds_ln", "hysteresis_ln"), source=src, where="gradient")
     thresholds = grad.get("thresholds_ln", [0.05, 0.1, 0.2])
     if (not isinstance(thresholds, list) or not thresholds
             or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 and math.isfinite(t)
@@ -167,6 +169,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
         render=dict(render),
         thresholds_ln=tuple(float(t) for t in thresholds),
+        hysteresis_ln=float(r.number(grad, "hysteresis_ln", "gradient", 0.0, minimum=0.0)),
         surround_length_px=float(r.number(cs, "surround_length_px", "csdvs", 2.0, positive=True)),
         surround_tau_s=float(r.number(cs, "surround_tau_s", "csdvs", 1e-3, minimum=0.0)),
         light_scale=float(r.number(light, "scale", "light", 1.0, positive=True)),

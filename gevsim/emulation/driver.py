@@ -111,7 +111,7 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
         if name in config.emulators:
             emulators[name] = GradientEmulator((h, w), thresholds=config.thresholds_ln, rc=rc,
                                                mismatch_sigma=preset.events.threshold_mismatch_ln,
-                                               rng=np.random.default_rng(s))
+                                               hysteresis=config.hysteresis_ln, rng=np.random.default_rng(s))
     if "csdvs" in config.emulators:
         emulators["csdvs"] = CenterSurroundEmulator(
             (h, w), preset.events, surround_length_px=config.surround_length_px,

@@ -1,0 +1,1 @@
+"""Studies (flicker, reconstruction, trade-off) and dataset generation."""

@@ -1,0 +1,341 @@
+"""Synthetic datasets: many randomised emulations, one shard per sequence, resumable.
+
+```toml
+[dataset]
+sequences = 8
+seed = 0
+scenes = ["office", "street_night"]   # built-in names or manifest paths (relative to this file)
+sensors = ["davis346", "dvs128"]
+emulators = ["dvs", "gradient", "gradient_rc"]
+duration_s = 0.02                     # default: each scene's own
+step_s = 2e-5
+chunk_steps = 256
+frame_rate_hz = 500.0
+evreal = true                         # also an EVREAL folder per sequence (needs "dvs" and frames)
+[dataset.render]                      # overrides of each scene's [render]
+width = 64
+[dataset.randomize]
+waveforms = ["pwm", "fluorescent", "sodium_hid", "sinusoid"]  # omit: keep each scene's waveforms
+frequency_hz = [100.0, 2000.0]        # log-uniform (pwm, sinusoid)
+duty = [0.1, 0.9]                     # uniform (pwm)
+modulation = [0.2, 1.0]               # uniform (sinusoid)
+mains_hz = [50.0, 60.0]               # choice (fluorescent, incandescent, sodium_hid)
+light_scale = [0.1, 10.0]             # log-uniform, multiplies all light
+```
+
+Sequence ``i`` draws everything from ``default_rng(SeedSequence([seed, i]))``, in
+this order: scene, sensor, then for **every** light group of the scene (in
+manifest order) a waveform type, its parameters and a uniform phase, then the
+light scale, then the emulation seed. So any subset of sequences, in any order,
+on any executor, gives identical shards.
+
+Output: ``DIR/shards/seq_{i:05d}.h5`` (the emulation), ``DIR/evreal/seq_{i:05d}/``
+and, written atomically last as the done-marker, ``DIR/shards/seq_{i:05d}.json``.
+A sequence counts as done only if its marker parses, its shard (and EVREAL
+folder) exist and the marker's config equals the one it would run now;
+otherwise it is redone from scratch. ``DIR/dataset.json`` lists the done ones.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import functools
+import json
+import math
+import shutil
+import time
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from gevsim import __version__
+from gevsim.config import TomlReader, read_toml
+from gevsim.emulation.config import EMULATORS, RENDER_KEYS, EmulationConfig
+from gevsim.errors import ConfigError, check_keys, suggest
+
+KEYS = ("sequences", "seed", "scenes", "sensors", "emulators", "duration_s", "step_s", "chunk_steps",
+        "frame_rate_hz", "evreal", "render", "randomize")
+RANDOM_WAVEFORMS = ("dc", "pwm", "sinusoid", "fluorescent", "incandescent", "sodium_hid")
+MAINS = ("fluorescent", "incandescent", "sodium_hid")
+
+
+@dataclass(frozen=True)
+class Randomize:
+    """Ranges drawn per sequence; ``(low, high)`` pairs, ``mains_hz`` a set to choose from."""
+
+    waveforms: tuple[str, ...] = ()  # empty: keep each scene's own waveforms
+    frequency_hz: tuple[float, float] = (100.0, 2000.0)
+    duty: tuple[float, float] = (0.1, 0.9)
+    modulation: tuple[float, float] = (0.2, 1.0)
+    mains_hz: tuple[float, ...] = (50.0, 60.0)
+    light_scale: tuple[float, float] = (1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    scenes: tuple[str, ...]
+    sequences: int = 1
+    seed: int = 0
+    sensors: tuple[str, ...] = ("davis346",)
+    emulators: tuple[str, ...] = ("dvs", "gradient", "gradient_rc")
+    duration_s: float | None = None
+    step_s: float = 1e-5
+    chunk_steps: int = 256
+    frame_rate_hz: float = 1000.0
+    evreal: bool = False
+    render: dict = field(default_factory=dict)
+    randomize: Randomize = Randomize()
+    source: str = ""
+    text: str = ""
+
+
+def _names(r: TomlReader, ds: dict, key: str, default, base: Path | None, check) -> tuple[str, ...]:
+    value = ds.get(key, default)
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        r.fail(f"dataset.{key}", f"expected a non-empty list of names, got {value!r}")
+    out = []
+    for v in value:
+        if base is not None and v.endswith(".toml") and not Path(v).is_absolute():
+            v = str((base / v).resolve())
+        try:
+            check(v)
+        except ConfigError as exc:
+            r.fail(f"dataset.{key}", str(exc))
+        out.append(v)
+    return tuple(out)
+
+
+def _emulator(name: str) -> None:
+    if name not in EMULATORS:
+        raise ConfigError(f"unknown emulator {name!r}{suggest(name, EMULATORS)}; choose from {', '.join(EMULATORS)}")
+
+
+def _range(r: TomlReader, table: dict, key: str, default, *, high=None):
+    value = table.get(key, list(default))
+    ok = (isinstance(value, list) and len(value) == 2
+          and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value))
+    if not ok or not 0 < value[0] <= value[1] or (high is not None and value[1] > high):
+        bound = f" <= {high}" if high is not None else ""
+        r.fail(f"dataset.randomize.{key}", f"expected [low, high] with 0 < low <= high{bound}, got {value!r}")
+    return (float(value[0]), float(value[1]))
+
+
+def _randomize(r: TomlReader, table: dict) -> Randomize:
+    check_keys(table, [f for f in Randomize.__dataclass_fields__], source=r.source, where="dataset.randomize")
+    waves = table.get("waveforms", [])
+    if not isinstance(waves, list) or not all(isinstance(w, str) for w in waves):
+        r.fail("dataset.randomize.waveforms", f"expected a list of waveform types, got {waves!r}")
+    for w in waves:
+        if w not in RANDOM_WAVEFORMS:
+            r.fail("dataset.randomize.waveforms", f"unknown waveform type {w!r}{suggest(w, RANDOM_WAVEFORMS)}; "
+                                                  f"choose from {', '.join(RANDOM_WAVEFORMS)}")
+    mains = table.get("mains_hz", [50.0, 60.0])
+    if (not isinstance(mains, list) or not mains
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in mains)):
+        r.fail("dataset.randomize.mains_hz", f"expected a non-empty list of positive numbers, got {mains!r}")
+    d = Randomize()
+    return Randomize(tuple(waves), _range(r, table, "frequency_hz", d.frequency_hz),
+                     _range(r, table, "duty", d.duty, high=1.0), _range(r, table, "modulation", d.modulation, high=1.0),
+                     tuple(float(m) for m in mains), _range(r, table, "light_scale", d.light_scale))
+
+
+def load_dataset_config(path: str | Path) -> DatasetConfig:
+    """Read and validate a dataset config; errors name the file and key."""
+    from gevsim.pixel import load_preset
+    from gevsim.render import load
+
+    path = Path(path)
+    raw = read_toml(path, what="dataset config")
+    r = TomlReader(str(path))
+    check_keys(raw, ("dataset",), source=r.source, where="")
+    ds = r.table(raw, "dataset")
+    check_keys(ds, KEYS, source=r.source, where="dataset")
+    emulators = _names(r, ds, "emulators", ["dvs", "gradient", "gradient_rc"], None, _emulator)
+    render = r.table(ds, "render", "dataset.")
+    check_keys(render, RENDER_KEYS, source=r.source, where="dataset.render")
+    for key in ("width", "height", "spp"):
+        if key in render:
+            r.number(render, key, "dataset.render", positive=True, integer=True)
+    evreal = ds.get("evreal", False)
+    if not isinstance(evreal, bool):
+        r.fail("dataset.evreal", f"expected true or false, got {evreal!r}")
+    duration = ds.get("duration_s")
+    config = DatasetConfig(
+        scenes=_names(r, ds, "scenes", None, path.parent, load),
+        sequences=r.number(ds, "sequences", "dataset", positive=True, integer=True),
+        seed=r.number(ds, "seed", "dataset", 0, minimum=0, integer=True),
+        sensors=_names(r, ds, "sensors", ["davis346"], path.parent, load_preset),
+        emulators=emulators,
+        duration_s=None if duration is None else float(r.number(ds, "duration_s", "dataset", positive=True)),
+        step_s=float(r.number(ds, "step_s", "dataset", 1e-5, positive=True)),
+        chunk_steps=r.number(ds, "chunk_steps", "dataset", 256, positive=True, integer=True),
+        frame_rate_hz=float(r.number(ds, "frame_rate_hz", "dataset", 1000.0, minimum=0.0)),
+        evreal=evreal, render=dict(render), randomize=_randomize(r, r.table(ds, "randomize", "dataset.")),
+        source=str(path), text=path.read_text())
+    if config.duration_s is not None and config.step_s >= config.duration_s:
+        r.fail("dataset.step_s", f"{config.step_s} must be shorter than duration_s = {config.duration_s}")
+    if evreal and ("dvs" not in emulators or config.frame_rate_hz <= 0):
+        r.fail("dataset.evreal", "needs 'dvs' in dataset.emulators and frame_rate_hz > 0 (ground-truth frames)")
+    return config
+
+
+def _waveform(rng: np.random.Generator, rz: Randomize) -> dict:
+    kind = rz.waveforms[int(rng.integers(len(rz.waveforms)))]
+    phase = float(rng.uniform(0.0, 2.0 * math.pi))
+    if kind in MAINS:
+        return {"type": kind, "mains_hz": float(rz.mains_hz[int(rng.integers(len(rz.mains_hz)))]), "phase_rad": phase}
+    if kind == "dc":
+        return {"type": "dc"}
+    f = float(np.exp(rng.uniform(*np.log(rz.frequency_hz))))
+    if kind == "pwm":
+        return {"type": "pwm", "frequency_hz": f, "duty": float(rng.uniform(*rz.duty)),
+                "phase_s": phase / (2.0 * math.pi * f)}
+    return {"type": "sinusoid", "frequency_hz": f, "modulation": float(rng.uniform(*rz.modulation)), "phase_rad": phase}
+
+
+@functools.lru_cache(maxsize=64)
+def _group_names(scene: str) -> tuple[str, ...]:
+    from gevsim.render import load
+
+    return load(scene).group_names
+
+
+def sequence_parameters(config: DatasetConfig, index: int) -> dict:
+    """The random parameters of sequence ``index`` (JSON-ready; depends on nothing else)."""
+    if not 0 <= index < config.sequences:
+        raise ValueError(f"sequence index {index} outside [0, {config.sequences})")
+    rng = np.random.default_rng(np.random.SeedSequence([config.seed, index]))
+    scene = config.scenes[int(rng.integers(len(config.scenes)))]
+    sensor = config.sensors[int(rng.integers(len(config.sensors)))]
+    groups = _group_names(scene) if config.randomize.waveforms else ()
+    waveforms = {g: _waveform(rng, config.randomize) for g in groups}
+    light_scale = float(np.exp(rng.uniform(*np.log(config.randomize.light_scale))))
+    return {"index": index, "scene": scene, "sensor": sensor, "waveforms": waveforms, "light_scale": light_scale,
+            "seed": int(rng.integers(2**31))}
+
+
+def sequence_config(config: DatasetConfig, params: dict) -> EmulationConfig:
+    """The emulation config of one sequence: the dataset's base config with its drawn parameters."""
+    base = EmulationConfig(scene=config.scenes[0], sensor=config.sensors[0], emulators=config.emulators,
+                           duration_s=config.duration_s, step_s=config.step_s, chunk_steps=config.chunk_steps,
+                           frame_rate_hz=config.frame_rate_hz, render=dict(config.render), source=config.source)
+    return replace(base, scene=params["scene"], sensor=params["sensor"], seed=params["seed"],
+                   light_scale=params["light_scale"], group_waveform=dict(params["waveforms"]))
+
+
+def _paths(out_dir, index: int) -> tuple[Path, Path, Path]:
+    out, name = Path(out_dir), f"seq_{index:05d}"
+    return out / "shards" / f"{name}.json", out / "shards" / f"{name}.h5", out / "evreal" / name
+
+
+def finished(config: DatasetConfig, out_dir, index: int) -> dict | None:
+    """The done-marker of sequence ``index`` if it is finished for this config, else None."""
+    marker, shard, evreal = _paths(out_dir, index)
+    try:
+        record = json.loads(marker.read_text())
+        same = tomllib.loads(record["config_toml"]) == tomllib.loads(
+            sequence_config(config, sequence_parameters(config, index)).to_toml())
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return record if same and shard.is_file() and (evreal.is_dir() or not config.evreal) else None
+
+
+def _clear(out_dir, index: int) -> None:
+    """Remove every trace of sequence ``index``, the marker first (and leftover temp files)."""
+    marker, shard, evreal = _paths(out_dir, index)
+    marker.unlink(missing_ok=True)
+    shard.unlink(missing_ok=True)
+    shutil.rmtree(evreal, ignore_errors=True)
+    for folder, stem in ((marker.parent, shard.stem), (evreal.parent, evreal.name)):
+        for tmp in folder.glob(f".{stem}.*") if folder.is_dir() else ():
+            shutil.rmtree(tmp, ignore_errors=True) if tmp.is_dir() else tmp.unlink(missing_ok=True)
+
+
+def _export_evreal(shard: Path, folder: Path, params: dict) -> None:
+    from gevsim.io import EventReader, export_evreal
+    from gevsim.reconstruct.tonemap import ToneMap
+
+    with EventReader(shard) as r:
+        events, (frames, t_us), w, h = r.read("events"), r.frames("log_photocurrent"), r.width, r.height
+    tone = ToneMap.from_ground_truth(frames)
+    images = np.rint(tone(frames) * 255.0).astype(np.uint8)
+    export_evreal(folder, events, images, t_us, width=w, height=h,
+                  extra_metadata={"tone_map_ln": [tone.low, tone.high], "parameters": params})
+
+
+def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: str | None = None) -> dict:
+    """Make sequence ``index`` unless finished (picklable: what executors run). Returns a small dict."""
+    from gevsim.emulation.driver import run
+    from gevsim.io import atomic_write_text
+
+    done = finished(config, out_dir, index)
+    if done is not None:
+        return {"index": index, "status": "skipped", "counts": done["counts"], "seconds": 0.0}
+    start = time.perf_counter()
+    _clear(out_dir, index)
+    marker, shard, evreal = _paths(out_dir, index)
+    params = sequence_parameters(config, index)
+    emulation = sequence_config(config, params)
+    summary = run(emulation, shard, cache_dir=cache_dir)
+    if config.evreal:
+        _export_evreal(shard, evreal, params)
+    seconds = time.perf_counter() - start
+    record = {"index": index, "parameters": params, "config_toml": emulation.to_toml(), "counts": summary["counts"],
+              "frames": summary["frames"], "width": summary["width"], "height": summary["height"],
+              "shard": str(shard.relative_to(Path(out_dir))), "seconds": seconds, "gevsim_version": __version__,
+              "evreal": str(evreal.relative_to(Path(out_dir))) if config.evreal else None}
+    atomic_write_text(marker, json.dumps(record, indent=1))  # last: the done-marker
+    return {"index": index, "status": "done", "counts": summary["counts"], "seconds": seconds}
+
+
+def generate(config: DatasetConfig, out_dir, *, executor: cf.Executor | None = None, indices=None,
+             cache_dir=None, progress=None) -> dict:
+    """Make the sequences ``indices`` (default: all) that are not finished, then ``dataset.json``.
+
+    ``executor`` None runs them here, one after another; ``progress(done, total)``
+    is called as each completes (finished ones count at once).
+    """
+    start = time.perf_counter()
+    out = Path(out_dir)
+    indices = list(range(config.sequences) if indices is None else indices)
+    for i in indices:
+        sequence_parameters(config, i)  # validates the index
+    todo = [i for i in indices if finished(config, out, i) is None]
+    total, done = len(indices), len(indices) - len(todo)
+    cache = None if cache_dir is None else str(cache_dir)
+    if progress:
+        progress(done, total)
+    if executor is None:
+        results = []
+        for i in todo:
+            results.append(run_sequence(config, str(out), i, cache_dir=cache))
+            done += 1
+            if progress:
+                progress(done, total)
+    else:
+        futures = [executor.submit(run_sequence, config, str(out), i, cache_dir=cache) for i in todo]
+        results = []
+        try:
+            for future in cf.as_completed(futures):
+                results.append(future.result())
+                done += 1
+                if progress:
+                    progress(done, total)
+        finally:
+            for future in futures:
+                future.cancel()
+    records = [r for r in (finished(config, out, i) for i in range(config.sequences)) if r is not None]
+    counts: dict[str, int] = {}
+    for r in (x for x in records if x["index"] in set(indices)):
+        for k, v in r["counts"].items():
+            counts[k] = counts.get(k, 0) + v
+    from gevsim.io import atomic_write_text
+
+    atomic_write_text(out / "dataset.json", json.dumps({
+        "gevsim_version": __version__, "source": config.source, "config_toml": config.text,
+        "complete": len(records) == config.sequences, "sequences": records}, indent=1))
+    computed = sum(r["status"] == "done" for r in results)
+    return {"out": str(out), "sequences": total, "done": computed, "skipped": total - computed, "counts": counts,
+            "events": sum(counts.values()), "seconds": time.perf_counter() - start}

@@ -1,0 +1,278 @@
+"""Study outputs: results table (CSV, JSON), PNG plots and one Markdown report,
+written into a staged folder and renamed into place together with the config."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+import gevsim
+from gevsim.emulation.config import EMULATORS
+
+COLORS = {"dvs": "tab:red", "gradient": "tab:blue", "gradient_rc": "tab:cyan", "csdvs": "tab:green"}
+
+
+def flat_rows(rows: list[dict]) -> list[dict]:
+    """Rows without nested values (spectra), lists as strings: one CSV line per run."""
+    out = []
+    for row in rows:
+        out.append({k: (json.dumps(v) if isinstance(v, list) else v) for k, v in row.items()
+                    if not isinstance(v, dict)})
+    return out
+
+
+def write_table(folder: Path, rows: list[dict]) -> None:
+    flat = flat_rows(rows)
+    keys = list(dict.fromkeys(k for row in flat for k in row))
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=keys)
+    writer.writeheader()
+    writer.writerows(flat)
+    (folder / "results.csv").write_text(buffer.getvalue())
+    (folder / "results.json").write_text(json.dumps(rows, indent=1, default=float))
+
+
+def _axis_values(rows, key):
+    return [row.get(key) for row in rows]
+
+
+def _savefig(fig, path: Path) -> None:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
+    path.write_bytes(buffer.getvalue())
+
+
+def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
+    """Write the PNG plots; returns (file, caption) pairs for the report."""
+    from gevsim.plots import _pyplot
+
+    plt = _pyplot()
+    x = study.report.get("x") or next(iter(study.axes), None)
+    # One panel per combination of the other swept axes (``lines`` first, if given).
+    others = [a for a in study.axes if a != x and len(study.axes[a]) > 1]
+    lines = study.report.get("lines")
+    if lines in others:
+        others.remove(lines)
+        others.insert(0, lines)
+    emulators = [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
+
+    def label(row):
+        return ", ".join(f"{a}={row.get(a)}" for a in others) if others else study.name
+
+    groups = list(dict.fromkeys(label(row) for row in rows))
+    made = []
+
+    def series(group):
+        sel = [row for row in rows if label(row) == group]
+        return sorted(sel, key=lambda row: (row.get(x) if isinstance(row.get(x), (int, float)) else str(row.get(x))))
+
+    def xvals(sel):
+        vals = _axis_values(sel, x)
+        numeric = all(isinstance(v, (int, float)) for v in vals)
+        return (vals if numeric else list(range(len(vals)))), numeric, [str(v) for v in vals]
+
+    values = [v for v in study.axes.get(x, []) if isinstance(v, (int, float))]
+    log_x = bool(values) and min(values) > 0 and max(values) / min(values) >= 10
+
+    # 1. Flicker-induced events per pixel per second, per emulator.
+    cols = min(4, len(groups))
+    nrows = -(-len(groups) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(4.6 * cols, 3.6 * nrows + 0.6), squeeze=False, sharey=True)
+    for ax in axes.ravel()[len(groups):]:
+        ax.axis("off")
+    for ax, group in zip(axes.ravel(), groups):
+        sel = series(group)
+        xs, numeric, labels = xvals(sel)
+        for e in emulators:
+            ys = np.maximum([row[f"{e}_flicker_per_pixel_s"] for row in sel], 1e-3)
+            ax.plot(xs, ys, "o-", color=COLORS[e], label=e)
+        ax.set_yscale("log")
+        if numeric and log_x:
+            ax.set_xscale("log")
+        if not numeric:
+            ax.set_xticks(xs, labels, rotation=20)
+        ax.set_xlabel(x)
+        ax.set_title(group, fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+    axes[0, 0].set_ylabel("flicker-induced events / pixel / s")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle("Flicker-induced event rate (run minus its flicker-free counterfactual; <= 0 drawn at 1e-3)")
+    fig.tight_layout()
+    _savefig(fig, folder / "flicker_rate.png")
+    plt.close(fig)
+    made.append(("flicker_rate.png", "Flicker-induced events per pixel per second for each emulator."))
+
+    # 2. Rejection ratio and reconstruction quality.
+    methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+    for group in groups:
+        sel = series(group)
+        xs, numeric, labels = xvals(sel)
+        if "flicker_rejection_ratio" in sel[0]:
+            a.plot(xs, np.maximum([row["flicker_rejection_ratio"] for row in sel], 1e-3), "o-", label=str(group))
+        for m in methods:
+            b.plot(xs, [row[f"{m}_ssim"] for row in sel], "o-", label=f"{m} ({group})" if others else m)
+    for ax, title in ((a, "flicker rejection ratio (DVS / gradient)"), (b, "SSIM vs flicker-free reference")):
+        ax.set_xlabel(x)
+        ax.set_title(title)
+        ax.grid(alpha=0.3, which="both")
+        if log_x:
+            ax.set_xscale("log")
+        ax.legend(fontsize=6)
+    a.set_yscale("log")
+    fig.tight_layout()
+    _savefig(fig, folder / "rejection_quality.png")
+    plt.close(fig)
+    made.append(("rejection_quality.png", "Left: DVS over gradient flicker-induced events. Right: reconstruction "
+                                          "SSIM of each method against the flicker-free reference."))
+
+    # 3. Event-rate spectrum of the run with the most flicker events.
+    with_spec = [row for row in rows if "dvs_spectrum" in row]
+    if with_spec:
+        row = max(with_spec, key=lambda r: r.get("dvs_flicker_per_pixel_s", 0))
+        f, amp = np.array(row["dvs_spectrum"]["hz"]), np.array(row["dvs_spectrum"]["amplitude"])
+        fig, ax = plt.subplots(figsize=(8, 3.5))
+        ax.plot(f, amp, lw=1)
+        f0 = row.get("flicker_frequency_hz")
+        if isinstance(f0, (int, float)):
+            for k in range(1, 6):
+                ax.axvline(k * f0, color="0.6", ls=":", lw=1)
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("DVS event-rate amplitude (events/s)")
+        ax.set_title(f"Event-rate spectrum, {', '.join(f'{k}={row[k]}' for k in study.axes if k in row)}")
+        fig.tight_layout()
+        _savefig(fig, folder / "spectrum.png")
+        plt.close(fig)
+        made.append(("spectrum.png", "Spectrum of the DVS event rate; dotted lines at harmonics of the flicker."))
+
+    # 4. Quality versus bandwidth, with the Pareto front.
+    stream_of = {m: ("gradient_rc" if m.endswith("_rc") else "gradient") if m.startswith(("dct", "sor")) else "dvs"
+                 for m in methods}
+    points = [(row[f"{stream_of[m]}_events_per_s"], row[f"{m}_ssim"], m) for row in rows for m in methods
+              if f"{stream_of[m]}_events_per_s" in row]
+    if points:
+        fig, ax = plt.subplots(figsize=(6.5, 4.5))
+        for m in methods:
+            pts = np.array([(p[0], p[1]) for p in points if p[2] == m])
+            ax.scatter(np.maximum(pts[:, 0], 1.0), pts[:, 1], s=18, label=m)
+        front = pareto_front([(p[0], p[1]) for p in points])
+        ax.plot([max(p[0], 1.0) for p in front], [p[1] for p in front], "k--", lw=1, label="Pareto front")
+        ax.set_xscale("log")
+        ax.set_xlabel("events / s")
+        ax.set_ylabel("SSIM")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        fig.tight_layout()
+        _savefig(fig, folder / "pareto.png")
+        plt.close(fig)
+        made.append(("pareto.png", "Reconstruction quality against bandwidth; the dashed line is the Pareto front "
+                                   "(fewest events for a given SSIM)."))
+    return made
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Points not dominated by another with fewer-or-equal events and higher-or-equal quality."""
+    front, best = [], -np.inf
+    for cost, quality in sorted(points, key=lambda p: (p[0], -p[1])):
+        if quality > best:
+            front.append((cost, quality))
+            best = quality
+    return front
+
+
+def key_table(rows: list[dict], study) -> str:
+    """Markdown table: the sweep parameters and the headline numbers of every run."""
+    emulators = [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
+    methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
+    head = list(study.axes) + [f"{e} flicker/px/s" for e in emulators] + [f"{m} SSIM" for m in methods]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    for row in rows:
+        cells = [str(row.get(a)) for a in study.axes]
+        cells += [f"{row[f'{e}_flicker_per_pixel_s']:.3g}" for e in emulators]
+        cells += [f"{row[f'{m}_ssim']:.3f}" for m in methods]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def findings(rows: list[dict]) -> list[str]:
+    """Plain-language sentences on what gradient events gain and lose, from the numbers."""
+    out = []
+    med = {e: float(np.median([r[f"{e}_flicker_per_pixel_s"] for r in rows]))
+           for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]}
+    if "dvs" in med and "gradient" in med:
+        out.append(f"Median flicker-induced rate: DVS {med['dvs']:.3g}, gradient {med['gradient']:.3g}"
+                   + (f", gradient RC {med['gradient_rc']:.3g}" if "gradient_rc" in med else "")
+                   + (f", CSDVS {med['csdvs']:.3g}" if "csdvs" in med else "") + " events per pixel per second.")
+    if "dvs_noise_per_pixel_s" in rows[0] and "gradient_noise_per_pixel_s" in rows[0]:
+        nd = float(np.median([r["dvs_noise_per_pixel_s"] for r in rows]))
+        ng = float(np.median([r["gradient_noise_per_pixel_s"] for r in rows]))
+        out.append(f"Noise-induced rate (median): DVS {nd:.3g}, gradient {ng:.3g} events per pixel per second; "
+                   "gradient comparators without hysteresis chatter when their gradient sits near a threshold.")
+    for m in [k[:-5] for k in rows[0] if k.endswith("_ssim")]:
+        out.append(f"{m}: mean SSIM {np.mean([r[f'{m}_ssim'] for r in rows]):.3f} against the flicker-free "
+                   "reference.")
+    return out
+
+
+def write_report(folder: Path, study, rows: list[dict], made: list) -> None:
+    parts = [f"# Study: {study.name}", "", study.description, "",
+             f"gevsim {gevsim.__version__}; {len(rows)} runs; config in `config.toml`, every number in "
+             "`results.csv` / `results.json`.", "", "## Findings", ""]
+    parts += [f"- {s}" for s in findings(rows)]
+    parts += ["", "How the numbers are made: every run is emulated three times on the same scene and seed: as is, "
+              "with each lamp at its mean (no flicker) and with an ideal pixel as well. Flicker-induced events = "
+              "run minus no-flicker; noise-induced = no-flicker minus ideal. Reconstructions are scored with "
+              "EVREAL's MSE/SSIM against the flicker-free log irradiance.", ""]
+    for name, caption in made:
+        parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    parts += ["## Runs", "", key_table(rows, study), ""]
+    (folder / "report.md").write_text("\n".join(parts))
+
+
+def write_study_outputs(out: str | Path, study, rows: list[dict]) -> Path:
+    """results.csv/json, plots, report.md and config.toml, staged then moved in next to ``runs/``."""
+    import os
+    import shutil
+    import tempfile
+
+    out = Path(out)
+    stage = Path(tempfile.mkdtemp(prefix=".outputs-partial-", dir=out))
+    try:
+        write_table(stage, rows)
+        made = plots(stage, study, rows)
+        write_report(stage, study, rows, made)
+        (stage / "config.toml").write_text(study.text)
+        for item in stage.iterdir():
+            os.replace(item, out / item.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return out / "report.md"
+
+
+BEST = {"dvs": ("complementary", "direct", "high_pass"), "gradient": ("dct", "sor"), "gradient_rc": ("dct_rc", "sor_rc"),
+        "csdvs": ()}
+
+
+def comparison_table(rows: list[dict], study) -> str:
+    """Per run and emulator: events/s, flicker-induced events per pixel per second and the best
+    reconstruction's SSIM/MSE (the demo's table)."""
+    lines = []
+    for row in rows:
+        label = ", ".join(f"{a}={row[a]}" for a in study.axes)
+        lines.append(f"\n{label}")
+        lines.append(f"  {'emulator':12s} {'events/s':>11s} {'flicker ev/px/s':>16s} {'noise ev/px/s':>14s} "
+                     f"{'best recon':>14s} {'SSIM':>6s} {'MSE':>7s}")
+        for e in EMULATORS:
+            if f"{e}_events_per_s" not in row:
+                continue
+            scored = [m for m in BEST[e] if f"{m}_ssim" in row]
+            best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
+            ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
+            mse = f"{row[f'{best}_mse']:7.4f}" if best else f"{'-':>7s}"
+            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:11.4g} {row[f'{e}_flicker_per_pixel_s']:16.4g} "
+                         f"{row[f'{e}_noise_per_pixel_s']:14.4g} {best or '-':>14s} {ssim} {mse}")
+    return "\n".join(lines)

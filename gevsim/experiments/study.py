@@ -1,0 +1,291 @@
+"""Studies: sweeps of emulation parameters, each run with its counterfactuals.
+
+A study config names a base emulation and sweep axes; every combination is a
+run. Each run is emulated three times on the same scene and seed (DESIGN.md,
+Counterfactual runs): as is, with every lamp waveform replaced by its mean,
+and with an ideal pixel as well. Flicker-induced events are the events of the
+run minus those without flicker; noise-induced events those without flicker
+minus those of the ideal pixel. Reconstructions of the run are scored against
+the flicker-free reference. Each run's result is written atomically as
+``runs/<id>.json``; a rerun skips finished runs, so interrupted studies resume.
+
+```toml
+[study]
+name = "flicker"
+scene = "office"
+sensor = "davis346"
+emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]
+flicker_group = "ceiling"      # the swept light group, or a table: { office = "ceiling", street_night = "street_lamp" }
+duration_s = 0.02
+step_s = 2e-5
+frame_rate_hz = 500.0
+seed = 1
+methods = ["dct", "direct"]    # reconstructions to score (gradient: dct/sor[_rc]; brightness: direct/...)
+[study.render]
+width = 64
+height = 48
+spp = 4
+[sweep]                        # axes; the runs are their cartesian product
+frequency_hz = [100.0, 300.0, 1000.0]
+waveform = ["pwm", "sinusoid"] # native (the scene's own), pwm, sinusoid, fluorescent, sodium_hid, incandescent, dc
+duty = [0.5]
+modulation = [1.0]
+light_scale = [1.0]
+flicker_scale = [1.0]          # radiance factor of the flickering group (its share of the light)
+scene = ["office", "office_pan"]
+sensor = ["davis346"]
+thresholds_ln = [[0.05, 0.1, 0.2]]
+hysteresis_ln = [0.0, 0.02]    # gradient comparator hysteresis (0: the paper)
+[report]
+x = "frequency_hz"
+lines = "waveform"
+```
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+import gevsim
+from gevsim.config import TomlReader, read_toml
+from gevsim.emulation.config import EMULATORS, STREAMS, EmulationConfig
+from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.io import atomic_write_text
+
+STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
+              "frame_rate_hz", "seed", "methods", "render", "chunk_steps")
+AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicker_scale", "scene", "sensor",
+        "thresholds_ln", "hysteresis_ln")
+WAVEFORMS = ("native", "pwm", "sinusoid", "fluorescent", "sodium_hid", "incandescent", "dc")
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    name: str
+    base: dict
+    axes: dict
+    report: dict
+    source: str
+    text: str
+    description: str = ""
+
+    def runs(self) -> list[dict]:
+        """Every combination of the sweep axes (in config order), as parameter dicts."""
+        names = list(self.axes)
+        return [dict(zip(names, values)) for values in itertools.product(*(self.axes[n] for n in names))]
+
+
+def load_study(path: str | Path) -> Study:
+    """Read and validate a study config; errors name the file and key."""
+    path = Path(path)
+    raw = read_toml(path, what="study config")
+    src = str(path)
+    r = TomlReader(src)
+    check_keys(raw, ("study", "sweep", "report"), source=src, where="")
+    st = r.table(raw, "study")
+    check_keys(st, STUDY_KEYS, source=src, where="study")
+    if not isinstance(st.get("scene"), str):
+        r.fail("study.scene", "missing: a scene name or manifest path")
+    group = st.get("flicker_group")
+    if not (isinstance(group, str) or (isinstance(group, dict) and group
+                                       and all(isinstance(v, str) for v in group.values()))):
+        r.fail("study.flicker_group", "missing: the light group whose waveform the sweep changes "
+                                      "(a name, or a table scene = group)")
+    emulators = st.get("emulators", list(EMULATORS))
+    for e in emulators:
+        if e not in EMULATORS:
+            r.fail("study.emulators", f"unknown emulator {e!r}{suggest(str(e), EMULATORS)}")
+    sweep = r.table(raw, "sweep")
+    check_keys(sweep, AXES, source=src, where="sweep")
+    for axis, values in sweep.items():
+        if not isinstance(values, list) or not values:
+            r.fail(f"sweep.{axis}", f"expected a non-empty list, got {values!r}")
+    for w in sweep.get("waveform", []):
+        if w not in WAVEFORMS:
+            r.fail("sweep.waveform", f"unknown waveform {w!r}{suggest(str(w), WAVEFORMS)}")
+    for axis in ("frequency_hz", "duty", "modulation", "light_scale", "flicker_scale"):
+        for v in sweep.get(axis, []):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                r.fail(f"sweep.{axis}", f"expected positive numbers, got {v!r}")
+    rep = r.table(raw, "report")
+    check_keys(rep, ("x", "lines"), source=src, where="report")
+    for key in ("x", "lines"):
+        if key in rep and rep[key] not in sweep:
+            r.fail(f"report.{key}", f"{rep[key]!r} is not a sweep axis{suggest(str(rep[key]), sweep)}")
+    base = {"scene": st["scene"], "sensor": st.get("sensor", "davis346"), "emulators": list(emulators),
+            "flicker_group": st["flicker_group"], "seed": r.number(st, "seed", "study", 0, minimum=0, integer=True),
+            "duration_s": float(r.number(st, "duration_s", "study", 0.02, positive=True)),
+            "step_s": float(r.number(st, "step_s", "study", 2e-5, positive=True)),
+            "frame_rate_hz": float(r.number(st, "frame_rate_hz", "study", 500.0, positive=True)),
+            "chunk_steps": r.number(st, "chunk_steps", "study", 256, positive=True, integer=True),
+            "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {}))}
+    return Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
+                 text=path.read_text(), description=str(st.get("description", "")))
+
+
+def flicker_group(study: Study, scene: str) -> str:
+    """The swept light group of a scene (``flicker_group`` is a name or a table scene = group)."""
+    group = study.base["flicker_group"]
+    if isinstance(group, str):
+        return group
+    if scene not in group:
+        raise ConfigError(f"no flicker group given for scene {scene!r}", source=study.source, key="study.flicker_group")
+    return group[scene]
+
+
+def waveform_spec(params: dict) -> dict | None:
+    """The flickering group's waveform table for a run's parameters (None: the scene's own)."""
+    kind = params.get("waveform", "native")
+    if kind == "native":
+        return None
+    f = float(params.get("frequency_hz", 100.0))
+    if kind == "pwm":
+        return {"type": "pwm", "frequency_hz": f, "duty": float(params.get("duty", 0.5))}
+    if kind == "sinusoid":
+        return {"type": "sinusoid", "frequency_hz": f, "modulation": float(params.get("modulation", 1.0))}
+    if kind == "fluorescent":  # light flickers at twice the mains frequency
+        spec = {"type": "fluorescent", "mains_hz": f / 2}
+        return {**spec, "modulation": float(params["modulation"])} if "modulation" in params else spec
+    if kind in ("sodium_hid", "incandescent"):
+        return {"type": kind, "mains_hz": f / 2}
+    return {"type": "dc"}
+
+
+def run_config(study: Study, params: dict) -> EmulationConfig:
+    b = study.base
+    name = params.get("scene", b["scene"])
+    group = flicker_group(study, name)
+    scene = name
+    if scene.endswith(".toml") and not Path(scene).is_absolute():
+        scene = str((Path(study.source).parent / scene).resolve())
+    wave = waveform_spec(params)
+    cfg = EmulationConfig(
+        scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]), seed=b["seed"],
+        duration_s=b["duration_s"], step_s=b["step_s"], chunk_steps=b["chunk_steps"],
+        frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]),
+        aps="complementary" in b["methods"], aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
+        thresholds_ln=tuple(params.get("thresholds_ln", (0.05, 0.1, 0.2))),
+        hysteresis_ln=float(params.get("hysteresis_ln", 0.0)),
+        light_scale=float(params.get("light_scale", 1.0)),
+        group_scale={group: float(params.get("flicker_scale", 1.0))},
+        group_waveform={group: wave} if wave else {}, source=study.source)
+    return dataclasses.replace(cfg, text=cfg.to_toml())
+
+
+def flicker_frequency_hz(study: Study, params: dict, cfg: EmulationConfig) -> float | None:
+    """Fundamental frequency of the swept group's light output (None for a steady lamp)."""
+    from gevsim.illumination import from_spec
+    from gevsim.render import load
+
+    group = flicker_group(study, params.get("scene", study.base["scene"]))
+    if group in cfg.group_waveform:
+        waveform = from_spec(cfg.group_waveform[group])
+    else:
+        waveform = next(g.waveform for g in load(cfg.scene).light_groups if g.name == group)
+    return 1.0 / waveform.period_s if waveform.period_s else None
+
+
+def run_id(study: Study, params: dict) -> str:
+    payload = json.dumps({"base": study.base, "params": params}, sort_keys=True, default=str)
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def event_rate_spectrum(events: np.ndarray, duration_s: float, *, bin_s: float = 1e-4):
+    """Amplitude spectrum of the event rate (events/s per Hz bin), for the harmonics plot."""
+    counts, _ = np.histogram(events["t"] * 1e-6, bins=max(2, int(round(duration_s / bin_s))), range=(0, duration_s))
+    rate = counts / bin_s
+    amp = np.abs(np.fft.rfft(rate - rate.mean())) / len(rate)
+    return np.fft.rfftfreq(len(rate), bin_s), amp
+
+
+def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> dict:
+    """Emulate a run and its counterfactuals, score reconstructions; return the result row."""
+    from gevsim.emulation import run
+    from gevsim.emulation.summary import summarize
+    from gevsim.reconstruct.runner import reconstruct_file
+
+    cfg = run_config(study, params)
+    folder.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    variants = {"run": dict(), "no_flicker": dict(flicker=False), "ideal": dict(flicker=False, noise=False)}
+    stats, info = {}, {}
+    for name, kw in variants.items():
+        info[name] = run(cfg, folder / f"{name}.h5", cache_dir=cache_dir, **kw)
+        stats[name] = summarize(folder / f"{name}.h5")
+    pixels = info["run"]["width"] * info["run"]["height"]
+    duration = info["run"]["duration_s"]
+    row = {"id": run_id(study, params), **{k: v for k, v in params.items()}, "pixels": pixels,
+           "duration_s": duration, "steps": info["run"]["steps"],
+           "flicker_frequency_hz": flicker_frequency_hz(study, params, cfg)}
+    for emulator in study.base["emulators"]:
+        stream = STREAMS[emulator]
+        counts = {k: stats[k][stream]["count"] for k in variants}
+        row[f"{emulator}_events_per_s"] = counts["run"] / duration
+        row[f"{emulator}_event_probability"] = stats["run"][stream]["event_probability"]
+        row[f"{emulator}_flicker_per_pixel_s"] = (counts["run"] - counts["no_flicker"]) / (pixels * duration)
+        row[f"{emulator}_noise_per_pixel_s"] = (counts["no_flicker"] - counts["ideal"]) / (pixels * duration)
+        row[f"{emulator}_scene_per_pixel_s"] = counts["ideal"] / (pixels * duration)
+    if "dvs_flicker_per_pixel_s" in row and "gradient_flicker_per_pixel_s" in row:
+        row["flicker_rejection_ratio"] = row["dvs_flicker_per_pixel_s"] / max(row["gradient_flicker_per_pixel_s"],
+                                                                              1.0 / (pixels * duration))
+    for method in study.base["methods"]:
+        base, rc = (method[:-3], True) if method.endswith("_rc") else (method, False)
+        rec, _, _ = reconstruct_file(folder / "run.h5", base, rc=rc, reference="no-flicker")
+        for k, v in rec.mean_metrics().items():
+            row[f"{method}_{k}"] = v
+    if "dvs" in study.base["emulators"]:
+        from gevsim.io import EventReader
+
+        with EventReader(folder / "run.h5") as r:
+            f, amp = event_rate_spectrum(r.read("events"), duration)
+        row["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
+    row["seconds"] = time.perf_counter() - start
+    row["gevsim"] = gevsim.__version__
+    return row
+
+
+def run_study(study: Study, out: str | Path, *, cache_dir=None, progress=None, keep_files: bool = False) -> list:
+    """Run (or resume) every run of a study into ``out``; returns the result rows in sweep order."""
+    out = Path(out)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    rows = []
+    all_params = study.runs()
+    for k, params in enumerate(all_params):
+        rid = run_id(study, params)
+        done = out / "runs" / f"{rid}.json"
+        if done.is_file():
+            rows.append(json.loads(done.read_text()))
+        else:
+            folder = out / "runs" / rid
+            row = execute_run(study, params, folder, cache_dir=cache_dir)
+            atomic_write_text(done, json.dumps(row, default=float))  # the marker: written last
+            if not keep_files:
+                for f in folder.glob("*.h5"):
+                    f.unlink()
+                folder.rmdir()
+            rows.append(row)
+        if progress:
+            progress(k + 1, len(all_params))
+    return rows
+
+
+def check_study_scenes(study: Study) -> None:
+    """Fail early (before any rendering) on a scene or flicker group that does not exist."""
+    from gevsim.render import load
+
+    for scene in study.axes.get("scene", [study.base["scene"]]):
+        manifest = load(scene if not str(scene).endswith(".toml") or Path(scene).is_absolute()
+                        else Path(study.source).parent / scene)
+        group = flicker_group(study, scene)
+        if group not in manifest.group_names:
+            raise ConfigError(f"scene {manifest.name!r} has no light group {group!r}"
+                              f"{suggest(group, manifest.group_names)}", source=study.source,
+                              key="study.flicker_group")

@@ -1,0 +1,127 @@
+"""Studies end to end on a tiny scene: outputs, counterfactual physics, resume, kill, bad config."""
+
+import csv
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from gevsim.cli import main
+from gevsim.experiments import study as study_mod
+from gevsim.experiments.study import load_study, run_study
+
+DATA = Path(__file__).parents[1] / "data"
+
+
+def write_study(tmp_path, sweep='waveform = ["dc", "sinusoid"]\nmodulation = [0.8]\nfrequency_hz = [1000.0]\n',
+                sensor="ideal", extra=""):
+    path = tmp_path / "study.toml"
+    path.write_text(f"""
+[study]
+name = "tiny"
+scene = "{DATA / 'card.toml'}"
+sensor = "{sensor}"
+emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]
+flicker_group = "lamp"
+duration_s = 0.003
+step_s = 5e-5
+frame_rate_hz = 1500.0
+seed = 3
+methods = ["dct", "direct"]
+{extra}
+[study.render]
+width = 24
+height = 18
+spp = 2
+
+[sweep]
+{sweep}
+[report]
+x = "waveform"
+""")
+    return path
+
+
+def test_study_outputs_and_counterfactual_physics(tmp_path, capsys):
+    cfg = write_study(tmp_path)
+    out = tmp_path / "out"
+    assert main(["study", str(cfg), "--out", str(out), "--cache", str(tmp_path / "c"), "-q"]) == 0
+    table = capsys.readouterr().out
+    assert "flicker ev/px/s" in table
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert [r["waveform"] for r in rows] == ["dc", "sinusoid"]
+    data = json.loads((out / "results.json").read_text())
+    steady, flicker = data
+    # A steady lamp: no flicker-induced events anywhere; ideal pixel: no noise-induced events.
+    for e in ("dvs", "gradient", "gradient_rc", "csdvs"):
+        assert steady[f"{e}_flicker_per_pixel_s"] == 0 and flicker[f"{e}_noise_per_pixel_s"] == 0
+    # One lamp lights the whole card: its flicker is a uniform ln offset, which an ideal
+    # (infinitely fast) pixel passes to the DVS but not to gradients.
+    assert flicker["dvs_flicker_per_pixel_s"] > 100
+    assert flicker["gradient_flicker_per_pixel_s"] == 0 and flicker["gradient_rc_flicker_per_pixel_s"] == 0
+    assert flicker["flicker_frequency_hz"] == pytest.approx(1000.0)
+    report = (out / "report.md").read_text()
+    images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report)
+    assert images and all((out / name).is_file() for name in images)
+    assert (out / "config.toml").read_text() == cfg.read_text()
+    assert not list(out.glob(".outputs-partial-*"))
+
+
+def test_rerun_resumes_without_recomputing(tmp_path, monkeypatch):
+    study = load_study(write_study(tmp_path))
+    out = tmp_path / "out"
+    first = run_study(study, out, cache_dir=tmp_path / "c")
+    markers = {p: p.read_bytes() for p in (out / "runs").glob("*.json")}
+    assert len(markers) == 2
+
+    def fail(*args, **kwargs):
+        raise AssertionError("a finished run was recomputed")
+
+    monkeypatch.setattr(study_mod, "execute_run", fail)
+    again = run_study(study, out, cache_dir=tmp_path / "c")
+    assert again == json.loads(json.dumps(first, default=float))
+    assert {p: p.read_bytes() for p in (out / "runs").glob("*.json")} == markers
+
+
+def test_a_killed_run_leaves_nothing_that_looks_finished(tmp_path, monkeypatch):
+    study = load_study(write_study(tmp_path))
+    out = tmp_path / "out"
+    real = study_mod.execute_run
+    calls = []
+
+    def killed_on_second(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(study_mod, "execute_run", killed_on_second)
+    with pytest.raises(KeyboardInterrupt):
+        run_study(study, out, cache_dir=tmp_path / "c")
+    assert len(list((out / "runs").glob("*.json"))) == 1 and not (out / "results.csv").exists()
+    monkeypatch.setattr(study_mod, "execute_run", real)
+    assert len(run_study(study, out, cache_dir=tmp_path / "c")) == 2
+
+
+@pytest.mark.parametrize(
+    "sweep, extra, text",
+    [
+        ('frequency_hz = [100.0]\nwavefrom = ["pwm"]\n', "", "did you mean 'waveform'"),
+        ('waveform = ["pwn"]\n', "", "did you mean 'pwm'"),
+        ('frequency_hz = [-5.0]\n', "", "sweep.frequency_hz"),
+        ('waveform = ["pwm"]\n', 'emulators_x = 1\n', "study.emulators_x"),
+    ],
+)
+def test_malformed_study_config_exits_2(tmp_path, capsys, sweep, extra, text):
+    cfg = write_study(tmp_path, sweep=sweep, extra=extra)
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert text in err and "Traceback" not in err
+
+
+def test_unknown_flicker_group_fails_before_rendering(tmp_path, capsys):
+    cfg = write_study(tmp_path)
+    cfg.write_text(cfg.read_text().replace('flicker_group = "lamp"', 'flicker_group = "lamps"'))
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "-q"]) == 2
+    assert "did you mean 'lamp'" in capsys.readouterr().err and not (tmp_path / "o").exists()
