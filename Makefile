@@ -1,7 +1,10 @@
 # gevsim: the two commands of the README.
 #   make demo   renders the built-in office scene: basis images, a flickering
 #               irradiance sequence, a contact sheet and a waveform plot (out/demo),
-#               then emulates DVS, gradient and CSDVS events on it (out/office_events.h5)
+#               then runs the comparison study (experiments/demo.toml): DVS, gradient and
+#               center-surround events in the office and on the sodium-lit street, with
+#               flicker/noise counterfactuals and reconstructions; table + report in
+#               out/demo_study (report.md)
 #   make test   runs the test suite
 # Both bootstrap .venv, the package with its extras, and the LLVM runtime that
 # Mitsuba's fast CPU variant needs (apt-get, when run as root). Re-running
@@ -29,7 +32,7 @@ llvm:
 demo: $(STAMP) llvm
 	$(VENV)/bin/gevsim info
 	$(VENV)/bin/gevsim render office --out $(DEMO_OUT) --frames 4000 --plots --cache .gevsim-cache
-	$(VENV)/bin/gevsim emulate experiments/office_small.toml --out out/office_events.h5 --cache .gevsim-cache
+	$(VENV)/bin/gevsim study experiments/demo.toml --out out/demo_study --cache .gevsim-cache
 
 test: $(STAMP) llvm
 	$(PY) -m pytest -q

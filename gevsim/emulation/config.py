@@ -26,6 +26,9 @@ hysteresis_ln = 0.0                # comparator hysteresis (0: the paper's defin
 surround_length_px = 2.0
 surround_tau_s = 1e-3
 
+[sensor]                       # overrides of the preset's parameters, by name
+threshold_mismatch_ln = 0.03
+
 [light]                        # changes that need no re-rendering (light transport is linear)
 scale = 1.0                    # every light group's radiance times this (light level)
 [light.groups.ceiling]         # per light group of the scene
@@ -47,7 +50,7 @@ EMULATORS = ("dvs", "gradient", "gradient_rc", "csdvs")
 #: HDF5 stream of each emulator.
 STREAMS = {"dvs": "events", "gradient": "gradient_events", "gradient_rc": "gradient_rc_events",
            "csdvs": "csdvs_events"}
-TABLES = ("emulation", "render", "gradient", "csdvs", "light")
+TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
                   "aps", "aps_exposure_s")
 RENDER_KEYS = ("width", "height", "spp", "seed", "max_px_per_pose")
@@ -70,6 +73,7 @@ class EmulationConfig:
     hysteresis_ln: float = 0.0
     surround_length_px: float = 2.0
     surround_tau_s: float = 1e-3
+    sensor_overrides: dict = field(default_factory=dict)  # preset parameter -> value
     light_scale: float = 1.0
     group_scale: dict = field(default_factory=dict)  # light group -> radiance factor
     group_waveform: dict = field(default_factory=dict)  # light group -> waveform spec table
@@ -93,6 +97,7 @@ class EmulationConfig:
             "gradient": {"thresholds_ln": list(self.thresholds_ln), "hysteresis_ln": self.hysteresis_ln},
             "csdvs": {"surround_length_px": self.surround_length_px, "surround_tau_s": self.surround_tau_s},
             "light": {"scale": self.light_scale, "groups": groups},
+            "sensor": dict(self.sensor_overrides),
         })
 
 
@@ -172,6 +177,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         hysteresis_ln=float(r.number(grad, "hysteresis_ln", "gradient", 0.0, minimum=0.0)),
         surround_length_px=float(r.number(cs, "surround_length_px", "csdvs", 2.0, positive=True)),
         surround_tau_s=float(r.number(cs, "surround_tau_s", "csdvs", 1e-3, minimum=0.0)),
+        sensor_overrides=dict(r.table(raw, "sensor")),
         light_scale=float(r.number(light, "scale", "light", 1.0, positive=True)),
         group_scale=group_scale,
         group_waveform=group_waveform,

@@ -25,6 +25,7 @@ from gevsim.illumination import from_spec, weights_at
 from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
+from gevsim.pixel.presets import with_overrides
 from gevsim.render import MitsubaScene, load, override, render_basis
 from gevsim.render.output import scene_optics
 
@@ -53,6 +54,8 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
     manifest = override(manifest, duration_s=duration)
     check_consistency(config, duration_s=duration)
     preset = load_preset(config.sensor)
+    if config.sensor_overrides:
+        preset = with_overrides(preset, config.sensor_overrides, source=config.source)
     if not noise:
         preset = preset.ideal()
     if config.aps and preset.aps is None:

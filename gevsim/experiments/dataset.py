@@ -1,27 +1,13 @@
 """Synthetic datasets: many randomised emulations, one shard per sequence, resumable.
 
-```toml
-[dataset]
-sequences = 8
-seed = 0
-scenes = ["office", "street_night"]   # built-in names or manifest paths (relative to this file)
-sensors = ["davis346", "dvs128"]
-emulators = ["dvs", "gradient", "gradient_rc"]
-duration_s = 0.02                     # default: each scene's own
-step_s = 2e-5
-chunk_steps = 256
-frame_rate_hz = 500.0
-evreal = true                         # also an EVREAL folder per sequence (needs "dvs" and frames)
-[dataset.render]                      # overrides of each scene's [render]
-width = 64
-[dataset.randomize]
-waveforms = ["pwm", "fluorescent", "sodium_hid", "sinusoid"]  # omit: keep each scene's waveforms
-frequency_hz = [100.0, 2000.0]        # log-uniform (pwm, sinusoid)
-duty = [0.1, 0.9]                     # uniform (pwm)
-modulation = [0.2, 1.0]               # uniform (sinusoid)
-mains_hz = [50.0, 60.0]               # choice (fluorescent, incandescent, sodium_hid)
-light_scale = [0.1, 10.0]             # log-uniform, multiplies all light
-```
+The config is one ``[dataset]`` table (see ``experiments/dataset_small.toml``):
+``sequences``, ``seed``, ``scenes`` and ``sensors`` (names or paths, relative to
+the file), ``emulators``, ``duration_s``, ``step_s``, ``chunk_steps``,
+``frame_rate_hz``, ``evreal``, ``[dataset.render]`` (overrides of each scene's
+render table) and ``[dataset.randomize]``: ``waveforms`` (types to draw from;
+omitted: keep each scene's own), ``frequency_hz`` (log-uniform, pwm/sinusoid),
+``duty`` (pwm), ``modulation`` (sinusoid), ``mains_hz`` (choice, mains lamps),
+``light_scale`` (log-uniform, multiplies all light).
 
 Sequence ``i`` draws everything from ``default_rng(SeedSequence([seed, i]))``, in
 this order: scene, sensor, then for **every** light group of the scene (in
@@ -30,10 +16,11 @@ light scale, then the emulation seed. So any subset of sequences, in any order,
 on any executor, gives identical shards.
 
 Output: ``DIR/shards/seq_{i:05d}.h5`` (the emulation), ``DIR/evreal/seq_{i:05d}/``
-and, written atomically last as the done-marker, ``DIR/shards/seq_{i:05d}.json``.
-A sequence counts as done only if its marker parses, its shard (and EVREAL
-folder) exist and the marker's config equals the one it would run now;
-otherwise it is redone from scratch. ``DIR/dataset.json`` lists the done ones.
+(DVS events, ground truth tone-mapped to uint8) and, written atomically last as
+the done-marker, ``DIR/shards/seq_{i:05d}.json``. A sequence counts as done only
+if its marker parses, its shard (and EVREAL folder) exist and the marker's
+config equals the one it would run now; otherwise it is redone from scratch.
+``DIR/dataset.json`` lists the done ones.
 """
 
 from __future__ import annotations
@@ -54,6 +41,8 @@ from gevsim import __version__
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EMULATORS, RENDER_KEYS, EmulationConfig
 from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.io import EventReader, atomic_write_text, export_evreal
+from gevsim.reconstruct.tonemap import ToneMap
 
 KEYS = ("sequences", "seed", "scenes", "sensors", "emulators", "duration_s", "step_s", "chunk_steps",
         "frame_rate_hz", "evreal", "render", "randomize")
@@ -91,10 +80,12 @@ class DatasetConfig:
     text: str = ""
 
 
-def _names(r: TomlReader, ds: dict, key: str, default, base: Path | None, check) -> tuple[str, ...]:
-    value = ds.get(key, default)
-    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
-        r.fail(f"dataset.{key}", f"expected a non-empty list of names, got {value!r}")
+def _names(r: TomlReader, table: dict, where: str, key: str, default, check, *, base: Path | None = None,
+           empty: bool = False) -> tuple[str, ...]:
+    """A list of names, each passed to ``check`` (which raises ConfigError); .toml paths resolved."""
+    value = table.get(key, default)
+    if not isinstance(value, list) or not (value or empty) or not all(isinstance(v, str) for v in value):
+        r.fail(f"{where}.{key}", f"expected a non-empty list of names, got {value!r}")
     out = []
     for v in value:
         if base is not None and v.endswith(".toml") and not Path(v).is_absolute():
@@ -102,14 +93,16 @@ def _names(r: TomlReader, ds: dict, key: str, default, base: Path | None, check)
         try:
             check(v)
         except ConfigError as exc:
-            r.fail(f"dataset.{key}", str(exc))
+            r.fail(f"{where}.{key}", str(exc))
         out.append(v)
     return tuple(out)
 
 
-def _emulator(name: str) -> None:
-    if name not in EMULATORS:
-        raise ConfigError(f"unknown emulator {name!r}{suggest(name, EMULATORS)}; choose from {', '.join(EMULATORS)}")
+def _one_of(choices: tuple[str, ...], what: str):
+    def check(name: str) -> None:
+        if name not in choices:
+            raise ConfigError(f"unknown {what} {name!r}{suggest(name, choices)}; choose from {', '.join(choices)}")
+    return check
 
 
 def _range(r: TomlReader, table: dict, key: str, default, *, high=None):
@@ -123,20 +116,15 @@ def _range(r: TomlReader, table: dict, key: str, default, *, high=None):
 
 
 def _randomize(r: TomlReader, table: dict) -> Randomize:
-    check_keys(table, [f for f in Randomize.__dataclass_fields__], source=r.source, where="dataset.randomize")
-    waves = table.get("waveforms", [])
-    if not isinstance(waves, list) or not all(isinstance(w, str) for w in waves):
-        r.fail("dataset.randomize.waveforms", f"expected a list of waveform types, got {waves!r}")
-    for w in waves:
-        if w not in RANDOM_WAVEFORMS:
-            r.fail("dataset.randomize.waveforms", f"unknown waveform type {w!r}{suggest(w, RANDOM_WAVEFORMS)}; "
-                                                  f"choose from {', '.join(RANDOM_WAVEFORMS)}")
+    where = "dataset.randomize"
+    check_keys(table, list(Randomize.__dataclass_fields__), source=r.source, where=where)
+    waves = _names(r, table, where, "waveforms", [], _one_of(RANDOM_WAVEFORMS, "waveform type"), empty=True)
     mains = table.get("mains_hz", [50.0, 60.0])
     if (not isinstance(mains, list) or not mains
             or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in mains)):
-        r.fail("dataset.randomize.mains_hz", f"expected a non-empty list of positive numbers, got {mains!r}")
+        r.fail(f"{where}.mains_hz", f"expected a non-empty list of positive numbers, got {mains!r}")
     d = Randomize()
-    return Randomize(tuple(waves), _range(r, table, "frequency_hz", d.frequency_hz),
+    return Randomize(waves, _range(r, table, "frequency_hz", d.frequency_hz),
                      _range(r, table, "duty", d.duty, high=1.0), _range(r, table, "modulation", d.modulation, high=1.0),
                      tuple(float(m) for m in mains), _range(r, table, "light_scale", d.light_scale))
 
@@ -152,7 +140,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     check_keys(raw, ("dataset",), source=r.source, where="")
     ds = r.table(raw, "dataset")
     check_keys(ds, KEYS, source=r.source, where="dataset")
-    emulators = _names(r, ds, "emulators", ["dvs", "gradient", "gradient_rc"], None, _emulator)
+    emulators = _names(r, ds, "dataset", "emulators", list(DatasetConfig.emulators), _one_of(EMULATORS, "emulator"))
     render = r.table(ds, "render", "dataset.")
     check_keys(render, RENDER_KEYS, source=r.source, where="dataset.render")
     for key in ("width", "height", "spp"):
@@ -163,10 +151,10 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         r.fail("dataset.evreal", f"expected true or false, got {evreal!r}")
     duration = ds.get("duration_s")
     config = DatasetConfig(
-        scenes=_names(r, ds, "scenes", None, path.parent, load),
+        scenes=_names(r, ds, "dataset", "scenes", None, load, base=path.parent),
         sequences=r.number(ds, "sequences", "dataset", positive=True, integer=True),
         seed=r.number(ds, "seed", "dataset", 0, minimum=0, integer=True),
-        sensors=_names(r, ds, "sensors", ["davis346"], path.parent, load_preset),
+        sensors=_names(r, ds, "dataset", "sensors", ["davis346"], load_preset, base=path.parent),
         emulators=emulators,
         duration_s=None if duration is None else float(r.number(ds, "duration_s", "dataset", positive=True)),
         step_s=float(r.number(ds, "step_s", "dataset", 1e-5, positive=True)),
@@ -254,9 +242,6 @@ def _clear(out_dir, index: int) -> None:
 
 
 def _export_evreal(shard: Path, folder: Path, params: dict) -> None:
-    from gevsim.io import EventReader, export_evreal
-    from gevsim.reconstruct.tonemap import ToneMap
-
     with EventReader(shard) as r:
         events, (frames, t_us), w, h = r.read("events"), r.frames("log_photocurrent"), r.width, r.height
     tone = ToneMap.from_ground_truth(frames)
@@ -268,7 +253,6 @@ def _export_evreal(shard: Path, folder: Path, params: dict) -> None:
 def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: str | None = None) -> dict:
     """Make sequence ``index`` unless finished (picklable: what executors run). Returns a small dict."""
     from gevsim.emulation.driver import run
-    from gevsim.io import atomic_write_text
 
     done = finished(config, out_dir, index)
     if done is not None:
@@ -295,44 +279,42 @@ def generate(config: DatasetConfig, out_dir, *, executor: cf.Executor | None = N
     """Make the sequences ``indices`` (default: all) that are not finished, then ``dataset.json``.
 
     ``executor`` None runs them here, one after another; ``progress(done, total)``
-    is called as each completes (finished ones count at once).
+    is called as each completes (finished ones count at once). One run at a
+    time per ``out_dir``: concurrent runs into the same folder are not supported.
+    Returns ``out``, ``sequences``, ``done`` (made now), ``skipped``, ``counts``
+    (events per stream over ``indices``), ``events`` (their sum) and ``seconds``.
     """
     start = time.perf_counter()
     out = Path(out_dir)
-    indices = list(range(config.sequences) if indices is None else indices)
+    indices = list(dict.fromkeys(range(config.sequences) if indices is None else indices))
     for i in indices:
         sequence_parameters(config, i)  # validates the index
     todo = [i for i in indices if finished(config, out, i) is None]
     total, done = len(indices), len(indices) - len(todo)
     cache = None if cache_dir is None else str(cache_dir)
-    if progress:
-        progress(done, total)
-    if executor is None:
-        results = []
-        for i in todo:
-            results.append(run_sequence(config, str(out), i, cache_dir=cache))
+    if executor is None:  # here, one after another
+        futures, outcomes = [], (run_sequence(config, str(out), i, cache_dir=cache) for i in todo)
+    else:
+        futures = [executor.submit(run_sequence, config, str(out), i, cache_dir=cache) for i in todo]
+        outcomes = (future.result() for future in cf.as_completed(futures))
+    results = []
+    try:
+        if progress:
+            progress(done, total)
+        for result in outcomes:
+            results.append(result)
             done += 1
             if progress:
                 progress(done, total)
-    else:
-        futures = [executor.submit(run_sequence, config, str(out), i, cache_dir=cache) for i in todo]
-        results = []
-        try:
-            for future in cf.as_completed(futures):
-                results.append(future.result())
-                done += 1
-                if progress:
-                    progress(done, total)
-        finally:
-            for future in futures:
-                future.cancel()
+    finally:  # on the first failure: drop what has not started (finished sequences stay finished)
+        for future in futures:
+            future.cancel()
     records = [r for r in (finished(config, out, i) for i in range(config.sequences)) if r is not None]
     counts: dict[str, int] = {}
-    for r in (x for x in records if x["index"] in set(indices)):
+    wanted = set(indices)
+    for r in (x for x in records if x["index"] in wanted):
         for k, v in r["counts"].items():
             counts[k] = counts.get(k, 0) + v
-    from gevsim.io import atomic_write_text
-
     atomic_write_text(out / "dataset.json", json.dumps({
         "gevsim_version": __version__, "source": config.source, "config_toml": config.text,
         "complete": len(records) == config.sequences, "sequences": records}, indent=1))

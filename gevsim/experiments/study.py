@@ -62,8 +62,11 @@ from gevsim.io import atomic_write_text
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
               "frame_rate_hz", "seed", "methods", "render", "chunk_steps")
+#: Sweep axes that override a sensor preset parameter (see gevsim.pixel.presets.with_overrides).
+SENSOR_AXES = ("threshold_mismatch_ln", "cutoff_hz", "max_cutoff_hz", "dark_current_a", "read_noise_v",
+               "pixel_pitch_m", "fill_factor", "refractory_s", "threshold_on_ln", "threshold_off_ln")
 AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicker_scale", "scene", "sensor",
-        "thresholds_ln", "hysteresis_ln")
+        "thresholds_ln", "hysteresis_ln") + SENSOR_AXES
 WAVEFORMS = ("native", "pwm", "sinusoid", "fluorescent", "sodium_hid", "incandescent", "dc")
 
 
@@ -111,10 +114,13 @@ def load_study(path: str | Path) -> Study:
     for w in sweep.get("waveform", []):
         if w not in WAVEFORMS:
             r.fail("sweep.waveform", f"unknown waveform {w!r}{suggest(str(w), WAVEFORMS)}")
-    for axis in ("frequency_hz", "duty", "modulation", "light_scale", "flicker_scale"):
+    for axis in ("frequency_hz", "duty", "modulation", "light_scale", "flicker_scale") + SENSOR_AXES:
+        low = 0.0 if axis in SENSOR_AXES else None  # sensor parameters may be 0 (off)
         for v in sweep.get(axis, []):
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                r.fail(f"sweep.{axis}", f"expected positive numbers, got {v!r}")
+            bad = isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+            if bad or (v < low if low is not None else v <= 0):
+                r.fail(f"sweep.{axis}", f"expected {'non-negative' if low is not None else 'positive'} numbers, "
+                                        f"got {v!r}")
     rep = r.table(raw, "report")
     check_keys(rep, ("x", "lines"), source=src, where="report")
     for key in ("x", "lines"):
@@ -174,6 +180,7 @@ def run_config(study: Study, params: dict) -> EmulationConfig:
         aps="complementary" in b["methods"], aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
         thresholds_ln=tuple(params.get("thresholds_ln", (0.05, 0.1, 0.2))),
         hysteresis_ln=float(params.get("hysteresis_ln", 0.0)),
+        sensor_overrides={k: params[k] for k in SENSOR_AXES if k in params},
         light_scale=float(params.get("light_scale", 1.0)),
         group_scale={group: float(params.get("flicker_scale", 1.0))},
         group_waveform={group: wave} if wave else {}, source=study.source)

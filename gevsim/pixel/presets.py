@@ -51,6 +51,29 @@ class SensorPreset:
         )
 
 
+def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None = None) -> SensorPreset:
+    """A copy with parameters replaced by name, wherever they live: the sensor geometry
+    (``pixel_pitch_m``, ``fill_factor``) or a field of ``photoreceptor``, ``noise``,
+    ``events`` (e.g. ``cutoff_hz``, ``dark_current_a``, ``threshold_mismatch_ln``)."""
+    import dataclasses
+
+    parts = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events}
+    top = {}
+    for key, value in overrides.items():
+        if key in ("pixel_pitch_m", "fill_factor"):
+            top[key] = float(value)
+            continue
+        owner = next((name for name, obj in parts.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
+        if owner is None:
+            names = ["pixel_pitch_m", "fill_factor"] + [f.name for obj in parts.values() for f in dataclasses.fields(obj)]
+            raise ConfigError(f"no sensor parameter {key!r}{suggest(key, names)}", source=source, key=key)
+        try:
+            parts[owner] = dataclasses.replace(parts[owner], **{key: value})
+        except ValueError as exc:
+            raise ConfigError(str(exc), source=source, key=key) from None
+    return dataclasses.replace(preset, **parts, **top)
+
+
 def preset_names() -> dict[str, Path]:
     """Names of the shipped sensor presets and their files."""
     return resource_tomls("noise")

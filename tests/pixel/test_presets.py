@@ -72,3 +72,16 @@ def test_bad_preset_names_file_and_key(tmp_path, text, key):
     with pytest.raises(ConfigError) as err:
         load_preset(bad)
     assert str(bad) in str(err.value) and key in str(err.value)
+
+
+def test_overrides_reach_the_right_parameter_group():
+    from gevsim.pixel.presets import with_overrides
+
+    p = with_overrides(load_preset("davis346"), {"threshold_mismatch_ln": 0.0, "cutoff_hz": 500.0,
+                                                 "dark_current_a": 1e-14, "pixel_pitch_m": 9e-6})
+    assert p.events.threshold_mismatch_ln == 0.0 and p.photoreceptor.cutoff_hz == 500.0
+    assert p.noise.dark_current_a == 1e-14 and p.pixel_pitch_m == 9e-6
+    with pytest.raises(ConfigError, match="did you mean 'cutoff_hz'"):
+        with_overrides(p, {"cuttoff_hz": 1.0})
+    with pytest.raises(ConfigError, match="cutoff_hz"):
+        with_overrides(p, {"cutoff_hz": -1.0})

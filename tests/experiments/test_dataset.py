@@ -1,0 +1,190 @@
+"""Dataset generation: per-sequence determinism, executors agree, resumable shards, EVREAL folders, config errors."""
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+
+from gevsim.cli import main
+from gevsim.errors import ConfigError
+from gevsim.experiments.dataset import finished, generate, load_dataset_config, sequence_parameters
+from gevsim.experiments.executors import make_executor
+from gevsim.io import EventReader, import_evreal
+from gevsim.io.evreal import EVENT_FILES, IMAGE_FILES, METADATA
+
+DATA = Path(__file__).parents[1] / "data"
+N = 3
+
+
+def write_config(folder: Path, name="dataset.toml", **changes) -> Path:
+    ds = {"sequences": N, "seed": 7, "scenes": [str(DATA / "card.toml")], "sensors": ["davis346", "dvs128"],
+          "emulators": ["dvs", "gradient", "gradient_rc"], "duration_s": 2e-3, "step_s": 1e-4,
+          "frame_rate_hz": 2000.0, "evreal": True, "render": {"width": 24, "height": 18, "spp": 2},
+          "randomize": {"waveforms": ["pwm", "fluorescent", "sodium_hid", "sinusoid"],
+                        "frequency_hz": [100.0, 2000.0], "duty": [0.1, 0.9], "mains_hz": [50.0, 60.0],
+                        "light_scale": [0.5, 2.0]}}
+    ds.update(changes)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / name
+    path.write_text(tomli_w.dumps({"dataset": ds}))
+    return path
+
+
+def shard(out: Path, i: int) -> Path:
+    return out / "shards" / f"seq_{i:05d}.h5"
+
+
+def marker(out: Path, i: int) -> Path:
+    return out / "shards" / f"seq_{i:05d}.json"
+
+
+def contents(path: Path) -> dict:
+    with EventReader(path) as r:
+        data = {s: r.read(s) for s in r.streams}
+        for name in r.frame_names:
+            data[name] = r.frames(name)
+    return data
+
+
+def assert_same_shard(a: Path, b: Path) -> None:
+    ca, cb = contents(a), contents(b)
+    assert ca.keys() == cb.keys()
+    for key in ca:
+        if isinstance(ca[key], tuple):  # frames: (images, t_us)
+            for x, y in zip(ca[key], cb[key]):
+                np.testing.assert_array_equal(x, y)
+        else:
+            np.testing.assert_array_equal(ca[key], cb[key])
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """All N sequences made in this process (no executor); returns (config, out, cache, summary)."""
+    base = tmp_path_factory.mktemp("dataset")
+    config = load_dataset_config(write_config(base))
+    out, cache = base / "ref", base / "cache"
+    summary = generate(config, out, cache_dir=cache)
+    return config, out, cache, summary
+
+
+def test_full_run_makes_every_sequence_with_events(reference):
+    config, out, _, summary = reference
+    assert summary["done"] == N and summary["skipped"] == 0
+    index = json.loads((out / "dataset.json").read_text())
+    assert index["complete"] and [s["index"] for s in index["sequences"]] == list(range(N))
+    for i in range(N):
+        record = json.loads(marker(out, i).read_text())
+        assert record["parameters"] == sequence_parameters(config, i)
+        with EventReader(shard(out, i)) as r:
+            assert {s: len(r.read(s)) for s in r.streams} == record["counts"]
+    assert summary["events"] == sum(sum(s["counts"].values()) for s in index["sequences"]) > 0
+    # the draws differ between sequences (seed, waveform phase at least)
+    assert len({sequence_parameters(config, i)["seed"] for i in range(N)}) == N
+
+
+def test_a_sequence_alone_equals_the_same_sequence_of_a_full_run(reference, tmp_path):
+    config, out, cache, _ = reference
+    summary = generate(config, tmp_path / "alone", indices=[2, 1], cache_dir=cache)
+    assert summary["done"] == 2 and not marker(tmp_path / "alone", 0).exists()
+    for i in (1, 2):
+        assert_same_shard(shard(out, i), shard(tmp_path / "alone", i))
+
+
+def test_process_pool_and_dask_give_the_same_shards(reference, tmp_path):
+    config, out, cache, _ = reference
+    with make_executor("local", workers=2) as pool:
+        local = generate(config, tmp_path / "local", executor=pool, cache_dir=cache)
+    with make_executor("dask", workers=2) as client:
+        dask = generate(config, tmp_path / "dask", executor=client, cache_dir=cache)
+    assert local["done"] == dask["done"] == N
+    assert local["counts"] == dask["counts"] == reference[3]["counts"]
+    for i in range(N):
+        assert_same_shard(shard(out, i), shard(tmp_path / "local", i))
+        assert_same_shard(shard(out, i), shard(tmp_path / "dask", i))
+
+
+def test_resume_recomputes_only_what_is_not_finished(reference, tmp_path):
+    config, ref, cache, _ = reference
+    out = tmp_path / "out"
+    shutil.copytree(ref, out)
+    stamp = lambda i: (marker(out, i).stat().st_mtime_ns, marker(out, i).read_bytes())  # noqa: E731
+    before = {i: stamp(i) for i in range(N)}
+
+    again = generate(config, out, cache_dir=cache)
+    assert (again["done"], again["skipped"]) == (0, N)
+    assert {i: stamp(i) for i in range(N)} == before
+
+    marker(out, 1).unlink()
+    redo = generate(config, out, cache_dir=cache)
+    assert (redo["done"], redo["skipped"]) == (1, N - 1)
+    assert stamp(0) == before[0] and stamp(2) == before[2] and stamp(1) != before[1]
+    assert_same_shard(shard(ref, 1), shard(out, 1))
+
+    # a killed run: shard without marker, plus a writer's leftover temp file
+    marker(out, 2).unlink()
+    leftover = out / "shards" / ".seq_00002.h5.x1y2z3.tmp"
+    leftover.write_bytes(b"partial")
+    assert finished(config, out, 2) is None and finished(config, out, 0) is not None
+    redo = generate(config, out, cache_dir=cache)
+    assert (redo["done"], redo["skipped"]) == (1, N - 1)
+    assert not leftover.exists() and marker(out, 2).exists()
+    assert_same_shard(shard(ref, 2), shard(out, 2))
+
+    # a marker made with another config is not a finished sequence for this one
+    other = load_dataset_config(write_config(tmp_path, "other.toml", step_s=5e-5))
+    assert finished(other, out, 0) is None
+
+
+def test_cli_resumes_and_reports(reference, tmp_path, capsys):
+    config, ref, cache, _ = reference
+    out = tmp_path / "out"
+    shutil.copytree(ref, out)
+    marker(out, 0).unlink()
+    assert main(["dataset", config.source, "--out", str(out), "--cache", str(cache), "--workers", "1", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert f"{N} sequences: 1 made, {N - 1} already done" in err
+    assert_same_shard(shard(ref, 0), shard(out, 0))
+
+
+def test_evreal_folders_import_back(reference):
+    _, out, _, _ = reference
+    for i in range(N):
+        folder = out / "evreal" / f"seq_{i:05d}"
+        assert sorted(os.listdir(folder)) == sorted(EVENT_FILES + IMAGE_FILES + (METADATA,))
+        events, images, t_us, width, height = import_evreal(folder)
+        with EventReader(shard(out, i)) as r:
+            np.testing.assert_array_equal(events, r.read("events"))
+            log_frames, frame_t = r.frames("log_photocurrent")
+        assert (width, height) == (24, 18) and images.dtype == np.uint8 and images.shape == log_frames.shape
+        np.testing.assert_array_equal(t_us, frame_t)
+        assert images.max() > images.min()  # tone-mapped, not flat
+        meta = json.loads((folder / METADATA).read_text())
+        assert meta["parameters"]["index"] == i and len(meta["tone_map_ln"]) == 2
+
+
+@pytest.mark.parametrize("changes, key, text", [
+    ({"sequence": 3}, "dataset.sequence", "did you mean 'sequences'"),
+    ({"scenes": []}, "dataset.scenes", "non-empty list"),
+    ({"sequences": -2}, "dataset.sequences", "must be > 0"),
+    ({"scenes": ["ofice"]}, "dataset.scenes", "did you mean 'office'"),
+    ({"randomize": {"waveforms": ["pwn"]}}, "dataset.randomize.waveforms", "did you mean 'pwm'"),
+    ({"randomize": {"duty": [0.5, 1.5]}}, "dataset.randomize.duty", "0 < low <= high <= 1.0"),
+    ({"emulators": ["gradient"]}, "dataset.evreal", "needs 'dvs'"),
+])
+def test_bad_config_names_file_and_key(tmp_path, changes, key, text):
+    path = write_config(tmp_path, **changes)
+    with pytest.raises(ConfigError) as info:
+        load_dataset_config(path)
+    assert info.value.key == key and info.value.source == str(path) and text in str(info.value)
+
+
+def test_cli_bad_config_exits_2_without_traceback(tmp_path, capsys):
+    path = write_config(tmp_path, sequences=-1)
+    assert main(["dataset", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "dataset.sequences" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
