@@ -1,4 +1,4 @@
-"""Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``.
+"""Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``, ``study``, ``dataset``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
 library. Bad input prints one line naming the file and key and exits with
