@@ -213,8 +213,10 @@ def findings(rows: list[dict]) -> list[str]:
         out.append(f"Noise-induced rate (median): DVS {nd:.3g}, gradient {ng:.3g} events per pixel per second; "
                    "gradient comparators without hysteresis chatter when their gradient sits near a threshold.")
     for m in [k[:-5] for k in rows[0] if k.endswith("_ssim")]:
-        out.append(f"{m}: mean SSIM {np.mean([r[f'{m}_ssim'] for r in rows]):.3f} against the flicker-free "
-                   "reference.")
+        scores = [r[f"{m}_ssim"] for r in rows if np.isfinite(r[f"{m}_ssim"])]
+        if scores:
+            out.append(f"{m}: mean SSIM {np.mean(scores):.3f} against the flicker-free reference "
+                       f"({len(scores)} of {len(rows)} runs).")
     return out
 
 
@@ -269,7 +271,7 @@ def comparison_table(rows: list[dict], study) -> str:
         for e in EMULATORS:
             if f"{e}_events_per_s" not in row:
                 continue
-            scored = [m for m in BEST[e] if f"{m}_ssim" in row]
+            scored = [m for m in BEST[e] if f"{m}_ssim" in row and np.isfinite(row[f"{m}_ssim"])]
             best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
             ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
             mse = f"{row[f'{best}_mse']:7.4f}" if best else f"{'-':>7s}"

@@ -59,6 +59,7 @@ from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EMULATORS, STREAMS, EmulationConfig
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.io import atomic_write_text
+from gevsim.pixel import load_preset
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
               "frame_rate_hz", "seed", "methods", "render", "chunk_steps")
@@ -177,7 +178,8 @@ def run_config(study: Study, params: dict) -> EmulationConfig:
         scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]), seed=b["seed"],
         duration_s=b["duration_s"], step_s=b["step_s"], chunk_steps=b["chunk_steps"],
         frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]),
-        aps="complementary" in b["methods"], aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
+        aps="complementary" in b["methods"] and load_preset(params.get("sensor", b["sensor"])).aps is not None,
+        aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
         thresholds_ln=tuple(params.get("thresholds_ln", (0.05, 0.1, 0.2))),
         hysteresis_ln=float(params.get("hysteresis_ln", 0.0)),
         sensor_overrides={k: params[k] for k in SENSOR_AXES if k in params},
@@ -244,6 +246,9 @@ def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> 
         row["flicker_rejection_ratio"] = row["dvs_flicker_per_pixel_s"] / max(row["gradient_flicker_per_pixel_s"],
                                                                               1.0 / (pixels * duration))
     for method in study.base["methods"]:
+        if method == "complementary" and not cfg.aps:  # the sensor has no APS: nothing to fuse
+            row.update({f"{method}_{k}": float("nan") for k in ("mse", "ssim", "psnr")})
+            continue
         base, rc = (method[:-3], True) if method.endswith("_rc") else (method, False)
         rec, _, _ = reconstruct_file(folder / "run.h5", base, rc=rc, reference="no-flicker")
         for k, v in rec.mean_metrics().items():
