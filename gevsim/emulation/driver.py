@@ -85,15 +85,25 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
 
 
 def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Photocurrent (T, H, W) for waveform weights (T, K) at times t_s (pose blend per step)."""
+    """Photocurrent (T, H, W) for waveform weights (T, K) at times t_s.
+
+    Between two poses the basis blends linearly: I = (1 - a) w.C_i + a w.C_{i+1};
+    steps are grouped by pose interval so each group is two matrix products.
+    """
     c, times = setup.current_basis, setup.basis_times_s
+    k, shape = c.shape[1], c.shape[2:]
     if len(times) == 1:
         return np.tensordot(weights, c[0], axes=1)
+    t_s = np.asarray(t_s, float)
     i = np.clip(np.searchsorted(times, t_s, side="right") - 1, 0, len(times) - 2)
     a = np.clip((t_s - times[i]) / (times[i + 1] - times[i]), 0.0, 1.0)
-    out = np.empty((len(t_s),) + c.shape[2:])
-    for k in range(len(t_s)):
-        out[k] = np.tensordot(weights[k], (1 - a[k]) * c[i[k]] + a[k] * c[i[k] + 1], axes=1)
+    out = np.empty((len(t_s),) + shape)
+    for seg in np.unique(i):
+        rows = np.flatnonzero(i == seg)
+        w = weights[rows]
+        lo = ((1.0 - a[rows])[:, None] * w) @ c[seg].reshape(k, -1)
+        hi = (a[rows][:, None] * w) @ c[seg + 1].reshape(k, -1)
+        out[rows] = (lo + hi).reshape((len(rows),) + shape)
     return out
 
 

@@ -180,3 +180,20 @@ def test_programmatic_config_round_trips_through_toml(tmp_path):
     for field in ("scene", "sensor", "seed", "step_s", "light_scale", "group_scale", "group_waveform",
                   "thresholds_ln", "emulators"):
         assert getattr(back, field) == getattr(cfg, field), field
+
+
+def test_pose_blend_of_the_photocurrent_basis():
+    """Between poses the photocurrent is the linear blend of the two poses' mixes."""
+    from gevsim.emulation.driver import Setup, photocurrent_at
+
+    rng = np.random.default_rng(0)
+    basis = rng.random((3, 2, 4, 5))  # 3 poses, 2 light groups
+    setup = Setup(None, None, np.array([0.0, 1.0, 3.0]), basis, (), 3.0, None)
+    t = np.array([0.0, 0.25, 1.0, 2.5, 3.0])
+    w = rng.random((5, 2))
+    got = photocurrent_at(setup, t, w)
+    for k, tk in enumerate(t):
+        i = min(int(np.searchsorted([0.0, 1.0, 3.0], tk, side="right")) - 1, 1)
+        a = (tk - [0.0, 1.0, 3.0][i]) / ([1.0, 2.0][i])
+        expect = np.tensordot(w[k], (1 - a) * basis[i] + a * basis[i + 1], axes=1)
+        np.testing.assert_allclose(got[k], expect, rtol=1e-12)
