@@ -311,6 +311,9 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     try:
         return args.func(args)
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
     except (ConfigError, ValueError, TypeError, OSError) as exc:
         if args.verbose:
             raise
