@@ -278,7 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--out", required=True, help="output folder (replaced atomically)")
     c.add_argument("--mean", default="ground-truth", help="level: ground-truth (papers' protocol) or photodiode")
     c.add_argument("--c", type=float, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")
-    c.add_argument("--contrast", type=float, default=0.2, help="contrast step of a brightness event (ln units)")
+    c.add_argument("--contrast", type=float, help="contrast step of a brightness event (ln units; default: "
+                                                   "the sensor's DVS thresholds stored in the file)")
     c.add_argument("--reference", default="flicker",
                    help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
     c.add_argument("--bits-per-event", type=float, default=32.0, help="for the bandwidth column (default 32)")
@@ -314,6 +315,11 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()
         return 0
+    except ImportError as exc:  # an optional extra (plot, dask, video) is missing
+        if args.verbose:
+            raise
+        print(f"gevsim: error: {exc}", file=sys.stderr)
+        return 2
     except (ConfigError, ValueError, TypeError, OSError) as exc:
         if args.verbose:
             raise

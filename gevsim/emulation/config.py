@@ -191,6 +191,13 @@ def check_consistency(config: EmulationConfig, *, duration_s: float) -> None:
     if config.step_s >= duration_s:
         raise ConfigError(f"step_s = {config.step_s} must be shorter than the duration {duration_s} s",
                           source=config.source, key="emulation.step_s")
+    steps = duration_s / config.step_s
+    if abs(steps - round(steps)) > 1e-6 * steps:
+        raise ConfigError(f"the duration {duration_s} s is not a whole number of steps of {config.step_s} s",
+                          source=config.source, key="emulation.step_s")
+    if config.hysteresis_ln >= min(config.thresholds_ln):
+        raise ConfigError(f"hysteresis_ln = {config.hysteresis_ln} must be below the smallest threshold "
+                          f"{min(config.thresholds_ln)}", source=config.source, key="gradient.hysteresis_ln")
     if config.aps and config.frame_rate_hz <= 0:
         raise ConfigError("aps = true needs frame_rate_hz > 0", source=config.source, key="emulation.aps")
     if config.aps and config.aps_exposure_s > 1.0 / max(config.frame_rate_hz, 1e-12):

@@ -53,6 +53,10 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
     duration = config.duration_s or manifest.duration_s
     manifest = override(manifest, duration_s=duration)
     check_consistency(config, duration_s=duration)
+    if "gradient_rc" in config.emulators and (manifest.render.width % 2 or manifest.render.height % 2):
+        raise ConfigError(f"gradient_rc (resolution compression) needs an even width and height, got "
+                          f"{manifest.render.width}x{manifest.render.height}", source=config.source,
+                          key="emulation.emulators")
     preset = load_preset(config.sensor)
     if config.sensor_overrides:
         preset = with_overrides(preset, config.sensor_overrides, source=config.source)
@@ -69,7 +73,7 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
     factors = group_photocurrent_factors(spectra, pixel=pixel, lens=lens)
     r = manifest.render
     cos4 = cos4_map(r.width, r.height, fov_x_deg=manifest.fov_deg)
-    y = basis.images[..., 0] if basis.images.shape[-1] == 1 else luminance(basis.images)
+    y = luminance(basis.images)
     names = manifest.group_names
     for group in set(config.group_scale) | set(config.group_waveform):
         if group not in names:
@@ -148,6 +152,8 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
         for name in ("gradient", "gradient_rc"):
             if name in emulators:
                 wr.write_array(f"/thresholds/{name}", emulators[name].theta.astype(np.float32))
+        if "dvs" in emulators:  # nominal ON/OFF contrast steps, for brightness-event reconstruction
+            wr.write_array("/thresholds/dvs", np.array([preset.events.threshold_on_ln, preset.events.threshold_off_ln]))
         if config.frame_rate_hz > 0:
             _write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
         chunks = range(0, n_steps, config.chunk_steps)

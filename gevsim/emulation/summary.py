@@ -17,7 +17,7 @@ def summarize(path, *, frames: str = "log_photocurrent") -> dict:
     with EventReader(path) as r:
         w, h = r.width, r.height
         duration = r.t_end_us / 1e6
-        frame_t = r.frames(frames)[1] if frames in r.frame_names else np.zeros(0, np.int64)
+        frame_t = r.array(f"/frames/{frames}/t") if frames in r.frame_names else np.zeros(0, np.int64)
         for stream in r.streams:
             probabilities = []
             for a in range(0, max(len(frame_t) - 1, 0), BATCH_FRAMES):

@@ -49,6 +49,7 @@ import hashlib
 import itertools
 import json
 import math
+import shutil
 import time
 from pathlib import Path
 
@@ -122,6 +123,21 @@ def load_study(path: str | Path) -> Study:
             if bad or (v < low if low is not None else v <= 0):
                 r.fail(f"sweep.{axis}", f"expected {'non-negative' if low is not None else 'positive'} numbers, "
                                         f"got {v!r}")
+    for values in sweep.get("thresholds_ln", []):
+        if (not isinstance(values, list) or not values
+                or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in values)):
+            r.fail("sweep.thresholds_ln", f"expected lists of positive numbers (one threshold set each), got {values!r}")
+    from gevsim.reconstruct.runner import BRIGHTNESS_METHODS, GRADIENT_METHODS
+
+    for method in st.get("methods", ["dct", "direct"]):
+        base_method = method[:-3] if str(method).endswith("_rc") else method
+        known = base_method in GRADIENT_METHODS or (base_method == method and method in BRIGHTNESS_METHODS)
+        if not known:
+            names = list(GRADIENT_METHODS) + [m + "_rc" for m in GRADIENT_METHODS] + list(BRIGHTNESS_METHODS)
+            r.fail("study.methods", f"unknown method {method!r}{suggest(str(method), names)}")
+        needs = ("gradient_rc" if method.endswith("_rc") else "gradient") if base_method in GRADIENT_METHODS else "dvs"
+        if needs not in emulators:
+            r.fail("study.methods", f"method {method!r} needs the {needs!r} emulator in study.emulators")
     rep = r.table(raw, "report")
     check_keys(rep, ("x", "lines"), source=src, where="report")
     for key in ("x", "lines"):
@@ -280,9 +296,7 @@ def run_study(study: Study, out: str | Path, *, cache_dir=None, progress=None, k
             row = execute_run(study, params, folder, cache_dir=cache_dir)
             atomic_write_text(done, json.dumps(row, default=float))  # the marker: written last
             if not keep_files:
-                for f in folder.glob("*.h5"):
-                    f.unlink()
-                folder.rmdir()
+                shutil.rmtree(folder, ignore_errors=True)
             rows.append(row)
         if progress:
             progress(k + 1, len(all_params))

@@ -61,6 +61,9 @@ def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None 
     top = {}
     for key, value in overrides.items():
         if key in ("pixel_pitch_m", "fill_factor"):
+            upper = 1e-3 if key == "pixel_pitch_m" else 1.0
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= upper:
+                raise ConfigError(f"expected a number in (0, {upper}], got {value!r}", source=source, key=key)
             top[key] = float(value)
             continue
         owner = next((name for name, obj in parts.items() if key in {f.name for f in dataclasses.fields(obj)}), None)

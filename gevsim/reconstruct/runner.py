@@ -67,12 +67,14 @@ def _level(gt: np.ndarray, is_log: bool, mean: str) -> float:
 
 
 def reconstruct_file(path: str | Path, method: str, *, mean: str = "ground-truth", rc: bool = False,
-                     c: float = 3.6, contrast: float = 0.2,
+                     c: float = 3.6, contrast: float | None = None,
                      reference: str = "flicker") -> tuple[Reconstruction, np.ndarray, ToneMap]:
     """Reconstruct at every ground-truth frame time; returns (reconstruction, ground truth, tone map).
 
     ``reference="no-flicker"`` scores against the scene with every lamp at its mean, the
     reference of the flicker-robustness question (what is in the scene, not the lamp phase).
+    ``contrast`` (the ln step of a brightness event) defaults to the DVS thresholds stored in
+    the file (the sensor's nominal ON/OFF thresholds), else 0.2.
     """
     if method not in METHODS:
         raise ConfigError(f"unknown method {method!r}{suggest(method, METHODS)}; choose from {', '.join(METHODS)}",
@@ -116,15 +118,21 @@ def _gradient(r: EventReader, gt, t_us, method, *, rc, c) -> Reconstruction:
 def _brightness(r: EventReader, gt, t_us, method, *, contrast, is_log) -> Reconstruction:
     from gevsim.reconstruct import brightness
 
+    if contrast is None:
+        try:
+            on, off = (float(v) for v in r.array("/thresholds/dvs"))
+        except (KeyError, ConfigError):
+            on = off = 0.2
+    else:
+        on = off = float(contrast)
     if "events" not in r.streams:
         raise ConfigError("holds no brightness event stream (emulate with 'dvs')", source=str(r.path))
     events = r.read("events", None, int(t_us[-1]) + 1)
     h, w = gt.shape[1:]
     if method == "direct":  # events only: starts from a flat image, like the filters
-        frames = brightness.direct_integration(events, t_us, width=w, height=h, contrast_on=contrast,
-                                               contrast_off=contrast)
+        frames = brightness.direct_integration(events, t_us, width=w, height=h, contrast_on=on, contrast_off=off)
     elif method == "high_pass":
-        frames = brightness.high_pass_filter(events, t_us, width=w, height=h, contrast=contrast)
+        frames = brightness.high_pass_filter(events, t_us, width=w, height=h, contrast=(on, off))
     else:
         if "aps" not in r.frame_names:
             raise ConfigError("the complementary filter needs APS frames: emulate with aps = true",
@@ -133,7 +141,7 @@ def _brightness(r: EventReader, gt, t_us, method, *, contrast, is_log) -> Recons
         offset = float(r.array_attrs("/frames/aps").get("offset_dn", 0.0))
         aps_log = np.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
         frames = brightness.complementary_filter(events, aps_log, aps_t, t_us, width=w, height=h,
-                                                 contrast=contrast)
+                                                 contrast=(on, off))
     if not is_log:  # frame mode compares intensities
         frames = np.exp(frames) - 1.0 / 255
     return Reconstruction(method, "events", t_us, np.asarray(frames, np.float64))

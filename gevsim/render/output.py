@@ -122,7 +122,7 @@ def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSe
         if frame_rate_hz:
             times = np.arange(0.0, manifest.duration_s, 1.0 / frame_rate_hz)
             frames = irradiance_frames(basis, manifest, times, lens=lens, exposure_s=exposure_s)
-            lux = illuminance_lux(luminance(frames if frames.shape[-1] == 3 else frames[..., 0]))
+            lux = illuminance_lux(luminance(frames))
             info["frames"] = {
                 "rate_hz": float(frame_rate_hz),
                 "exposure_s": exposure_s,

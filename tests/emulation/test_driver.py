@@ -197,3 +197,23 @@ def test_pose_blend_of_the_photocurrent_basis():
         a = (tk - [0.0, 1.0, 3.0][i]) / ([1.0, 2.0][i])
         expect = np.tensordot(w[k], (1 - a) * basis[i] + a * basis[i + 1], axes=1)
         np.testing.assert_allclose(got[k], expect, rtol=1e-12)
+
+
+@pytest.mark.parametrize("emulation, text", [
+    (dict(step_s=2.4e-5), "not a whole number of steps"),
+])
+def test_time_grid_must_tile_the_duration(tmp_path, capsys, emulation, text):
+    cfg = config(tmp_path, **emulation)
+    assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
+    assert text in capsys.readouterr().err
+
+
+def test_hysteresis_and_rc_size_are_checked_before_rendering(tmp_path, capsys):
+    cfg = config(tmp_path)
+    cfg.write_text(cfg.read_text() + "[gradient]\nthresholds_ln = [0.05]\nhysteresis_ln = 0.05\n")
+    assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
+    assert "gradient.hysteresis_ln" in capsys.readouterr().err
+    odd = config(tmp_path, name="odd.toml")
+    odd.write_text(odd.read_text() + "[render]\nwidth = 31\n")
+    assert main(["emulate", str(odd), "--out", str(tmp_path / "y.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
+    assert "even width and height" in capsys.readouterr().err and not (tmp_path / "c").exists()

@@ -137,3 +137,16 @@ def test_sensor_axes_sweep_preset_parameters(tmp_path):
     assert [r["threshold_mismatch_ln"] for r in rows] == [0.0, 0.05]
     assert all(r["gradient_flicker_per_pixel_s"] == 0 for r in rows)
     assert rows[0]["dvs_events_per_s"] != rows[1]["dvs_events_per_s"]
+
+
+@pytest.mark.parametrize("methods, text", [('["dct", "dirct"]', "did you mean 'direct'"),
+                                           ('["direct_rc"]', "unknown method 'direct_rc'"),
+                                           ('["sor"]', "needs the 'gradient' emulator")])
+def test_study_methods_are_checked_before_any_work(tmp_path, capsys, methods, text):
+    cfg = write_study(tmp_path)
+    body = cfg.read_text().replace('methods = ["dct", "direct"]', f"methods = {methods}")
+    if "sor" in methods:
+        body = body.replace('emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]', 'emulators = ["dvs"]')
+    cfg.write_text(body)
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "-q"]) == 2
+    assert text in capsys.readouterr().err and not (tmp_path / "o").exists()

@@ -94,3 +94,19 @@ def test_no_flicker_reference_is_the_scene_with_lamps_at_their_mean(emulation):
     assert np.all(offset.std(axis=1) < 0.01) and offset.mean(axis=1).std() > 0.1
     with pytest.raises(ValueError, match="unknown reference"):
         reconstruct_file(emulation, "dct", reference="steady")
+
+
+def test_brightness_reconstruction_uses_the_sensors_contrast_step(emulation):
+    from gevsim.io import EventReader
+    from gevsim.pixel import load_preset
+
+    with EventReader(emulation) as r:
+        stored = r.array("/thresholds/dvs")
+    events = load_preset("davis346").events
+    np.testing.assert_allclose(stored, [events.threshold_on_ln, events.threshold_off_ln])
+    a, _, _ = reconstruct_file(emulation, "direct")  # the stored step
+    b, _, _ = reconstruct_file(emulation, "direct", contrast=2 * events.threshold_on_ln)
+    # Before mean matching, doubling the step doubles every frame's deviation from its mean.
+    da = a.frames - a.frames.mean(axis=(1, 2), keepdims=True)
+    db = b.frames - b.frames.mean(axis=(1, 2), keepdims=True)
+    np.testing.assert_allclose(db, 2 * da, atol=1e-9)
