@@ -13,15 +13,9 @@ from typing import Any
 
 import numpy as np
 
+from gevsim.config import FieldError  # noqa: F401  (re-exported for the waveform modules)
+
 __all__ = ["Waveform"]
-
-
-class FieldError(ValueError):
-    """A bad dataclass field; ``field`` names it so that a factory can report the key."""
-
-    def __init__(self, field: str, message: str):
-        self.field = field
-        super().__init__(message)
 
 
 def real(obj: Any, name: str, *, low: float | None = None, high: float | None = None,
