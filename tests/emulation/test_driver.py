@@ -217,3 +217,16 @@ def test_hysteresis_and_rc_size_are_checked_before_rendering(tmp_path, capsys):
     odd.write_text(odd.read_text() + "[render]\nwidth = 31\n")
     assert main(["emulate", str(odd), "--out", str(tmp_path / "y.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
     assert "even width and height" in capsys.readouterr().err and not (tmp_path / "c").exists()
+
+
+def test_summary_rates_in_windows_equal_whole_stream_rates(tmp_path, monkeypatch):
+    from gevsim.emulation import summary as summary_mod
+    from gevsim.events import event_rates
+
+    run(load_config(config(tmp_path)), tmp_path / "o.h5", cache_dir=tmp_path / "c")
+    monkeypatch.setattr(summary_mod, "WINDOW_US", 700)  # several windows over the 4 ms run
+    stats = summary_mod.summarize(tmp_path / "o.h5")
+    with EventReader(tmp_path / "o.h5") as r:
+        for stream in STREAMS:
+            whole = event_rates(r.read(stream), r.t_end_us / 1e6, width=32, height=24)
+            assert stats[stream]["rates_hz"] == pytest.approx(whole)
