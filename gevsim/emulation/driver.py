@@ -46,9 +46,9 @@ class Setup:
     variant: object
 
 
-def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, noise: bool = True,
-            progress=None) -> Setup:
-    """Render (or load) the basis, and build the photocurrent basis and the sensor."""
+def prepare(config: EmulationConfig, *, cache_dir=None, progress=None) -> Setup:
+    """Render (or load) the basis, and build the photocurrent basis and the sensor. The
+    counterfactual variants of a run share it (:func:`counterfactual`)."""
     manifest = override(load(config.scene), **{k: v for k, v in config.render.items()})
     duration = config.duration_s or manifest.duration_s
     manifest = override(manifest, duration_s=duration)
@@ -60,8 +60,6 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
     preset = load_preset(config.sensor)
     if config.sensor_overrides:
         preset = with_overrides(preset, config.sensor_overrides, source=config.source)
-    if not noise:
-        preset = preset.ideal()
     if config.aps and preset.aps is None:
         raise ConfigError(f"sensor preset {preset.name!r} has no [aps] table", source=config.source,
                           key="emulation.aps")
@@ -83,9 +81,15 @@ def prepare(config: EmulationConfig, *, cache_dir=None, flicker: bool = True, no
     current = (y * (factors * scale)[None, :, None, None] * cos4[None, None]).astype(np.float64)
     waveforms = tuple(from_spec(config.group_waveform[g], source=config.source, key=f"light.groups.{g}.waveform")
                       if g in config.group_waveform else w for g, w in zip(names, basis.waveforms))
-    if not flicker:
-        waveforms = tuple(w.constant() for w in waveforms)
     return Setup(manifest, preset, basis.times_s, current, waveforms, duration, scene.variant)
+
+
+def counterfactual(setup: Setup, *, flicker: bool = True, noise: bool = True) -> Setup:
+    """The same setup with every waveform at its mean (``flicker=False``) and/or an ideal
+    pixel (``noise=False``): DESIGN.md's counterfactual runs, without re-rendering."""
+    waveforms = setup.waveforms if flicker else tuple(w.constant() for w in setup.waveforms)
+    preset = setup.preset if noise else setup.preset.ideal()
+    return dataclasses.replace(setup, waveforms=waveforms, preset=preset)
 
 
 def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -112,10 +116,14 @@ def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.nd
 
 
 def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=True, noise=True,
-        progress=None, render_progress=None) -> dict:
-    """Run an emulation and write ``out`` (HDF5). Returns a summary (counts, rates, timings)."""
+        progress=None, render_progress=None, setup: Setup | None = None) -> dict:
+    """Run an emulation and write ``out`` (HDF5). Returns a summary (counts, rates, timings).
+
+    ``setup`` (from :func:`prepare` with the same config) skips loading the basis again.
+    """
     start = time.perf_counter()
-    setup = prepare(config, cache_dir=cache_dir, flicker=flicker, noise=noise, progress=render_progress)
+    setup = setup if setup is not None else prepare(config, cache_dir=cache_dir, progress=render_progress)
+    setup = counterfactual(setup, flicker=flicker, noise=noise)
     render_s = time.perf_counter() - start
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width

@@ -233,7 +233,7 @@ def event_rate_spectrum(events: np.ndarray, duration_s: float, *, bin_s: float =
 
 def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> dict:
     """Emulate a run and its counterfactuals, score reconstructions; return the result row."""
-    from gevsim.emulation import run
+    from gevsim.emulation import prepare, run
     from gevsim.emulation.summary import summarize
     from gevsim.reconstruct.runner import reconstruct_file
 
@@ -242,8 +242,9 @@ def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> 
     start = time.perf_counter()
     variants = {"run": dict(), "no_flicker": dict(flicker=False), "ideal": dict(flicker=False, noise=False)}
     stats, info = {}, {}
+    setup = prepare(cfg, cache_dir=cache_dir)  # rendered (or loaded) once for all three
     for name, kw in variants.items():
-        info[name] = run(cfg, folder / f"{name}.h5", cache_dir=cache_dir, **kw)
+        info[name] = run(cfg, folder / f"{name}.h5", setup=setup, **kw)
         stats[name] = summarize(folder / f"{name}.h5")
     pixels = info["run"]["width"] * info["run"]["height"]
     duration = info["run"]["duration_s"]
