@@ -82,7 +82,12 @@ def brightness(v, t_start, t_end, ref, v_prev, last_t, th_on, th_off, leak, refr
                                 break
                             de = d + k * (se - s)
                             if (pol == 1 and de < on) or (pol == -1 and de > -off):
-                                break
+                                # Fell back inside the thresholds while refractory: no event;
+                                # look on from the end of the refractory period.
+                                d = de
+                                s = se
+                                n += 1
+                                continue
                     te = ta + se * dt
                     _push(b, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
                           np.int64(math.floor(te * 1e6 + 0.5)), t, p, pol, 0)

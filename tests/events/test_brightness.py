@@ -121,3 +121,17 @@ def test_time_must_continue_across_chunks():
     em.process(np.zeros((2,) + SHAPE), [0.0, 1e-3])
     with pytest.raises(ValueError, match="increase strictly"):
         em.process(np.zeros((1,) + SHAPE), [1e-3])
+
+
+def test_an_off_crossing_after_a_lapsed_refractory_on_is_on_time():
+    """A rise fires ON at 0.2 (t = 100 us), a second ON is held by a 200 us refractory period, the
+    signal falls meanwhile: the OFF crossing inside the same step is stamped at its own time."""
+    t = np.array([0.0, 200e-6, 1000e-6])
+    v = np.array([0.0, 0.4, -0.1])[:, None, None] * np.ones((1,) + SHAPE)
+    ev = emulate(v, t, EventParams(refractory_s=200e-6))
+    one = ev[(ev["x"] == 0) & (ev["y"] == 0)]
+    # ON at 100 us resets the level to 0.2; the pending second ON lapses at 300 us (the signal
+    # has fallen below 0.4); the signal (0.4 at 200 us, -0.5 per 800 us) reaches 0.0, one OFF
+    # step below the level, at 200 + 0.8 * 800 = 840 us.
+    assert one["p"].tolist() == [True, False]
+    assert one["t"].tolist() == [100, 840]
