@@ -69,6 +69,30 @@ def diffuse(image, out, inv_x, up_x, inv_y, up_y, c):
             out[y, x] = col[y]
 
 
+@njit(parallel=True, cache=True)
+def centre_minus_surround(v, decay, surround, inv_x, up_x, inv_y, up_y, c, diff):
+    """For each step k: target = diffuse(v[k]); surround <- target + decay[k] (surround - target)
+    (exact first-order low-pass for held input); diff[k] = v[k] - surround. ``surround`` is
+    updated in place (the state carried across chunks)."""
+    t_steps, h, w = v.shape
+    tmp = np.empty((h, w))
+    target = np.empty((h, w))
+    for k in range(t_steps):
+        for y in prange(h):
+            _solve(v[k, y].astype(np.float64), tmp[y], inv_x, up_x, c)
+        for x in prange(w):
+            col = np.empty(h)
+            _solve(tmp[:, x].copy(), col, inv_y, up_y, c)
+            for y in range(h):
+                target[y, x] = col[y]
+        a = decay[k]
+        for y in prange(h):
+            for x in range(w):
+                s = target[y, x] + a * (surround[y, x] - target[y, x])
+                surround[y, x] = s
+                diff[k, y, x] = v[k, y, x] - s
+
+
 class CenterSurroundEmulator:
     """CSDVS over (H, W) pixels; state kept across chunks.
 
@@ -94,7 +118,6 @@ class CenterSurroundEmulator:
         self._x = thomas_coefficients(self.shape[1], self.c)
         self._y = thomas_coefficients(self.shape[0], self.c)
         self.surround: np.ndarray | None = None
-        self.t_s: float | None = None
 
     dtype = BrightnessEmulator.dtype
 
@@ -106,20 +129,16 @@ class CenterSurroundEmulator:
 
     def process(self, signal, t_s) -> np.ndarray:
         """Events from centre minus surround for samples ``signal`` (T, H, W) at ``t_s`` (T,)."""
-        v, _, t_end, first = self.dvs.clock.steps(signal, t_s, name="signal")
-        s = None if first else self.surround.copy()
-        t_prev = self.t_s
+        v, t_start, t_end, first = self.dvs.clock.steps(signal, t_s, name="signal")
+        if len(t_end) == 0:
+            return self.dvs.process(v, t_end)
+        tau = self.surround_tau_s
+        decay = np.exp(-(t_end - t_start) / tau) if tau > 0 else np.zeros(len(t_end))
+        if first:  # the surround starts settled on the first sample
+            decay[0] = 0.0
+        surround = np.zeros(self.shape) if first else self.surround.copy()
         diff = np.empty(v.shape)
-        for k in range(len(t_end)):
-            target = self.spatial_surround(v[k])
-            if s is None:
-                s = target
-            else:
-                a = math.exp(-(t_end[k] - t_prev) / self.surround_tau_s) if self.surround_tau_s > 0 else 0.0
-                s = target + a * (s - target)
-            t_prev = t_end[k]
-            diff[k] = v[k] - s
+        centre_minus_surround(v, decay, surround, *self._x, *self._y, self.c, diff)
         events = self.dvs.process(diff, t_end)
-        if len(t_end):
-            self.surround, self.t_s = s, float(t_end[-1])
+        self.surround = surround
         return events
