@@ -131,6 +131,11 @@ def choose_variant(
             return VariantChoice(llvm, "DRJIT_LIBLLVM_PATH names a usable libLLVM", user_path)
     elif libllvm and llvm in available:
         return VariantChoice(llvm, f"found libLLVM {llvm_version(libllvm)}", libllvm)
+    if scalar not in available and "scalar_rgb" in available and flavour == "mono":
+        # PyPI's Mitsuba has no scalar_mono: render RGB, whose luminance the pipeline uses anyway.
+        return VariantChoice("scalar_rgb", f"scalar fallback: {why_not}; this Mitsuba build has no scalar_mono, "
+                                           f"so RGB is rendered and its luminance used; for the fast variant "
+                                           f"{FAST_HINT}", None, True)
     if scalar not in available:
         raise ConfigError(f"Mitsuba offers neither {llvm} nor {scalar}; available: {', '.join(available)}")
     return VariantChoice(scalar, f"scalar fallback: {why_not}; for the fast variant {FAST_HINT}", None, True)

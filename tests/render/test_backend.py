@@ -102,3 +102,9 @@ def test_activate_falls_back_to_scalar_with_a_warning():
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["scalar_rgb", "scalar_rgb", "True"]
+
+
+def test_mono_without_scalar_mono_falls_back_to_rgb():
+    available = tuple(v for v in ALL if v != "scalar_mono")
+    c = choose_variant("mono", env={}, available=available, cuda_ok=False, libllvm=None)
+    assert c.variant == "scalar_rgb" and c.fallback and "no scalar_mono" in c.reason
