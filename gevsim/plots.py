@@ -23,6 +23,15 @@ def _pyplot():
     return plt
 
 
+def save_figure(fig, path: str | os.PathLike) -> None:
+    """Write a figure as a PNG atomically (temporary name, then rename) and close it."""
+    import matplotlib.pyplot as plt
+
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)
+
+
 def tone_map(irradiance: np.ndarray, *, low=None, high=None) -> np.ndarray:
     """Log tone mapping to [0, 1]: ln(E) between the 1st and 99th percentiles
     of the whole sequence (or ``low``/``high``), so frames share one scale."""
@@ -53,9 +62,7 @@ def contact_sheet(frames: np.ndarray, times_s, path: str | os.PathLike, *, title
         ax.set_title(f"t = {1e3 * times_s[i]:.2f} ms, {float(illuminance_lux(y).mean()):.1f} lx", fontsize=9)
     fig.suptitle(f"{title}: focal-plane irradiance (log scale)", fontsize=11)
     fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def waveform_plot(basis, times_s, mean_lux, path: str | os.PathLike, *, title: str = ""):
@@ -75,6 +82,4 @@ def waveform_plot(basis, times_s, mean_lux, path: str | os.PathLike, *, title: s
     bottom.grid(alpha=0.3)
     fig.suptitle(f"{title}: lamp waveforms and mean irradiance")
     fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
+    save_figure(fig, path)

@@ -27,7 +27,7 @@ from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spec
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
 from gevsim.pixel.presets import with_overrides
 from gevsim.render import MitsubaScene, load, override, render_basis
-from gevsim.render.output import scene_optics
+from gevsim.render.output import resolved_config, scene_optics
 
 log = logging.getLogger(__name__)
 DEFAULT_SPECTRUM = "D65"  # for light groups given as RGB radiance without a lamp spectrum
@@ -152,7 +152,7 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
     dark = float(preset.noise.dark_current_a)
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,
              "flicker": flicker, "noise": noise, "variant": setup.variant.variant,
-             "scene_toml": _toml(m.raw), "emulators": list(emulators)}
+             "scene_toml": resolved_config(m), "emulators": list(emulators)}
     pixel_s = 0.0
     event_s = {n: 0.0 for n in emulators}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
@@ -192,12 +192,6 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
         "pixel_steps_per_s": pixel_steps / max(pixel_s, 1e-12),
         "total_s": time.perf_counter() - start, "frames": len(frame_t),
     }
-
-
-def _toml(raw: dict) -> str:
-    import tomli_w
-
-    return tomli_w.dumps(raw)
 
 
 def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):

@@ -40,15 +40,9 @@ def _axis_values(rows, key):
     return [row.get(key) for row in rows]
 
 
-def _savefig(fig, path: Path) -> None:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    path.write_bytes(buffer.getvalue())
-
-
 def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
     """Write the PNG plots; returns (file, caption) pairs for the report."""
-    from gevsim.plots import _pyplot
+    from gevsim.plots import _pyplot, save_figure
 
     plt = _pyplot()
     x = study.report.get("x") or next(iter(study.axes), None)
@@ -102,8 +96,7 @@ def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
     axes[0, 0].legend(fontsize=8)
     fig.suptitle("Flicker-induced event rate (run minus its flicker-free counterfactual; <= 0 drawn at 1e-3)")
     fig.tight_layout()
-    _savefig(fig, folder / "flicker_rate.png")
-    plt.close(fig)
+    save_figure(fig, folder / "flicker_rate.png")
     made.append(("flicker_rate.png", "Flicker-induced events per pixel per second for each emulator."))
 
     # 2. Rejection ratio and reconstruction quality.
@@ -125,8 +118,7 @@ def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
         ax.legend(fontsize=6)
     a.set_yscale("log")
     fig.tight_layout()
-    _savefig(fig, folder / "rejection_quality.png")
-    plt.close(fig)
+    save_figure(fig, folder / "rejection_quality.png")
     made.append(("rejection_quality.png", "Left: DVS over gradient flicker-induced events. Right: reconstruction "
                                           "SSIM of each method against the flicker-free reference."))
 
@@ -145,8 +137,7 @@ def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
         ax.set_ylabel("DVS event-rate amplitude (events/s)")
         ax.set_title(f"Event-rate spectrum, {', '.join(f'{k}={row[k]}' for k in study.axes if k in row)}")
         fig.tight_layout()
-        _savefig(fig, folder / "spectrum.png")
-        plt.close(fig)
+        save_figure(fig, folder / "spectrum.png")
         made.append(("spectrum.png", "Spectrum of the DVS event rate; dotted lines at harmonics of the flicker."))
 
     # 4. Quality versus bandwidth, with the Pareto front.
@@ -167,8 +158,7 @@ def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3, which="both")
         fig.tight_layout()
-        _savefig(fig, folder / "pareto.png")
-        plt.close(fig)
+        save_figure(fig, folder / "pareto.png")
         made.append(("pareto.png", "Reconstruction quality against bandwidth; the dashed line is the Pareto front "
                                    "(fewest events for a given SSIM)."))
     return made

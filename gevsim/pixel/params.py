@@ -116,7 +116,7 @@ class NoiseParams(FromTable):
         n = type(self).__name__
         if not isinstance(self.shot_noise, bool):
             raise FieldError("shot_noise", f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
-        for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "prnu", "flicker_noise_v"):
+        for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "flicker_noise_v"):
             _check(n, name, getattr(self, name), nonnegative=True)
         _check(n, "prnu", self.prnu, nonnegative=True, upper=0.5)
         _check(n, "read_noise_bandwidth_hz", self.read_noise_bandwidth_hz, positive=True)

@@ -26,7 +26,7 @@ def _png(path: Path, image01: np.ndarray) -> None:
 def side_by_side(path: Path, gt01: np.ndarray, recs01: dict, t_us: np.ndarray, *, max_frames: int = 4,
                  metrics: dict | None = None) -> None:
     """Rows: a few frames; columns: ground truth, then each method (with its SSIM)."""
-    from gevsim.plots import _pyplot
+    from gevsim.plots import _pyplot, save_figure
 
     plt = _pyplot()
     idx = np.unique(np.linspace(0, len(gt01) - 1, min(max_frames, len(gt01))).round().astype(int))
@@ -42,10 +42,7 @@ def side_by_side(path: Path, gt01: np.ndarray, recs01: dict, t_us: np.ndarray, *
             label = name if col == 0 else f"{name}\nSSIM {metrics[name][k]['ssim']:.3f}" if metrics else name
             ax.set_title(f"{label}" + (f"\nt = {t_us[k] / 1e3:.1f} ms" if col == 0 else ""), fontsize=8)
     fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
-    path.write_bytes(buffer.getvalue())
+    save_figure(fig, path)
 
 
 def write_reconstructions(out: str | Path, source: str | Path, results: list, gt: np.ndarray,
