@@ -58,7 +58,8 @@ def cmd_render(args) -> int:
 
     manifest = load(args.scene)
     manifest = override(manifest, width=args.width, height=args.height, spp=args.spp, seed=args.seed,
-                        duration_s=args.duration)
+                        noise_target_ln=args.noise_target, max_spp=args.max_spp, time_budget_s=args.time_budget,
+                        duration_s=args.duration, source="command line")
     if args.frames is not None and args.frames <= 0:
         raise ConfigError(f"must be > 0, got {args.frames}", key="--frames")
     if args.plots and args.frames is None:
@@ -69,8 +70,12 @@ def cmd_render(args) -> int:
         _pyplot()
     start = time.perf_counter()
     scene = MitsubaScene(manifest)
-    print(f"gevsim: scene {manifest.name}, {manifest.render.width}x{manifest.render.height}, "
-          f"{manifest.render.spp} spp, variant {scene.variant.variant} ({scene.variant.reason})", file=sys.stderr)
+    r = manifest.render
+    quality = (f"noise target {r.noise_target_ln} ln at p{r.noise_percentile:g} (max {r.max_spp} spp)" if r.targeted
+               else f"{r.spp} spp")
+    print(f"gevsim: scene {manifest.name}, {r.width}x{r.height}, {quality}, {r.sampler} sampler, "
+          f"variant {scene.variant.variant} ({scene.variant.reason}), "
+          f"{'one pass for all light groups' if scene.one_pass else 'one render per light group'}", file=sys.stderr)
     update, close = _progress(f"render {manifest.name}", not args.quiet)
     try:
         basis = render_basis(scene, cache_dir=args.cache, progress=update)
@@ -80,9 +85,12 @@ def cmd_render(args) -> int:
     info = write_render(args.out, manifest, basis, variant=scene.variant, frame_rate_hz=args.frames,
                         exposure_s=args.exposure, plots=args.plots)
     per = basis.render_s[basis.render_s > 0]
-    timing = f", {per.mean():.3f} s per basis image" if per.size else ""
-    print(f"gevsim: {len(basis.times_s)} poses x {len(basis.groups)} light groups, {rendered} rendered, "
-          f"{basis.render_s.size - rendered} from cache{timing}; "
+    timing = f", {per.mean():.2f} s per pose" if per.size else ""
+    q = basis.noise_summary()
+    print(f"gevsim: {len(basis.times_s)} poses x {len(basis.groups)} light groups, {rendered} poses rendered, "
+          f"{basis.render_s.size - rendered} from cache{timing}; {q['spp_min']}-{q['spp_max']} spp, "
+          f"p{q['percentile']:g} ln error {q['se_ln']['at_percentile']:.4g}"
+          f"{'' if q['reached'] else ' (target NOT reached: ' + ', '.join(q['stopped_by']) + ')'}; "
           f"{len(info.get('frames', {}).get('t_s', []))} frames; wrote {args.out} "
           f"in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0
@@ -250,7 +258,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--cache", metavar="DIR", help="basis image cache (default $GEVSIM_CACHE or ~/.cache/gevsim)")
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)
-    r.add_argument("--spp", type=int)
+    r.add_argument("--spp", type=int, help="a fixed sample count (draft mode; replaces the scene's noise target)")
+    r.add_argument("--noise-target", type=float, metavar="LN", dest="noise_target",
+                   help="render until this standard error of ln radiance (at the scene's percentile) is reached")
+    r.add_argument("--max-spp", type=int, dest="max_spp", help="noise-target mode: stop at this many samples")
+    r.add_argument("--time-budget", type=float, metavar="S", dest="time_budget",
+                   help="noise-target mode: stop after about S seconds of rendering")
     r.add_argument("--seed", type=int)
     r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -45,6 +45,7 @@ from pathlib import Path
 
 from gevsim.config import TomlReader, read_toml
 from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.render.manifest import check_render_overrides
 
 EMULATORS = ("dvs", "gradient", "gradient_rc", "csdvs")
 #: HDF5 stream of each emulator.
@@ -53,7 +54,6 @@ STREAMS = {"dvs": "events", "gradient": "gradient_events", "gradient_rc": "gradi
 TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
                   "aps", "aps_exposure_s")
-RENDER_KEYS = ("width", "height", "spp", "seed", "max_px_per_pose")
 
 
 @dataclass(frozen=True)
@@ -128,10 +128,7 @@ def load_config(path: str | Path) -> EmulationConfig:
             r.fail("emulation.emulators", f"unknown emulator {name!r}{suggest(str(name), EMULATORS)}; "
                                           f"choose from {', '.join(EMULATORS)}")
     render = r.table(raw, "render")
-    check_keys(render, RENDER_KEYS, source=src, where="render")
-    for key in ("width", "height", "spp"):
-        if key in render:
-            r.number(render, key, "render", positive=True, integer=True)
+    check_render_overrides(render, r, "render")
     grad = r.table(raw, "gradient")
     check_keys(grad, ("thresholds_ln", "hysteresis_ln"), source=src, where="gradient")
     thresholds = grad.get("thresholds_ln", [0.05, 0.1, 0.2])

@@ -11,6 +11,7 @@ waveform over the step (held input for the photoreceptor).
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import time
 from pathlib import Path
@@ -44,6 +45,8 @@ class Setup:
     waveforms: tuple
     duration_s: float
     variant: object
+    current_noise: np.ndarray | None = None  # (P, K, H, W): the render's error sample in photocurrent
+    render_quality: dict = dataclasses.field(default_factory=dict)  # achieved render noise (summarize_quality)
 
 
 def prepare(config: EmulationConfig, *, cache_dir=None, progress=None) -> Setup:
@@ -64,24 +67,27 @@ def prepare(config: EmulationConfig, *, cache_dir=None, progress=None) -> Setup:
         raise ConfigError(f"sensor preset {preset.name!r} has no [aps] table", source=config.source,
                           key="emulation.aps")
     scene = MitsubaScene(manifest)
-    basis = render_basis(scene, cache_dir=cache_dir, progress=progress)
+    smallest = min((*config.thresholds_ln, preset.events.threshold_on_ln, preset.events.threshold_off_ln))
+    basis = render_basis(scene, cache_dir=cache_dir, progress=progress, smallest_threshold_ln=smallest)
     lens, _ = scene_optics(manifest)
     pixel = Pixel(pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor)
     spectra = [lamp_spectrum(g.emission.spectrum or DEFAULT_SPECTRUM) for g in manifest.light_groups]
     factors = group_photocurrent_factors(spectra, pixel=pixel, lens=lens)
     r = manifest.render
     cos4 = cos4_map(r.width, r.height, fov_x_deg=manifest.fov_deg)
-    y = luminance(basis.images)
     names = manifest.group_names
     for group in set(config.group_scale) | set(config.group_waveform):
         if group not in names:
             raise ConfigError(f"scene {manifest.name!r} has no light group {group!r}{suggest(group, names)}",
                               source=config.source, key=f"light.groups.{group}")
     scale = config.light_scale * np.array([config.group_scale.get(g, 1.0) for g in names])
-    current = (y * (factors * scale)[None, :, None, None] * cos4[None, None]).astype(np.float64)
+    per_group = (factors * scale)[None, :, None, None] * cos4[None, None]
+    current = (luminance(basis.images) * per_group).astype(np.float64)
+    noise = (luminance(basis.noise) * per_group).astype(np.float64)
     waveforms = tuple(from_spec(config.group_waveform[g], source=config.source, key=f"light.groups.{g}.waveform")
                       if g in config.group_waveform else w for g, w in zip(names, basis.waveforms))
-    return Setup(manifest, preset, basis.times_s, current, waveforms, duration, scene.variant)
+    return Setup(manifest, preset, basis.times_s, current, waveforms, duration, scene.variant, current_noise=noise,
+                 render_quality=basis.noise_summary())
 
 
 def counterfactual(setup: Setup, *, flicker: bool = True, noise: bool = True) -> Setup:
@@ -90,6 +96,36 @@ def counterfactual(setup: Setup, *, flicker: bool = True, noise: bool = True) ->
     waveforms = setup.waveforms if flicker else tuple(w.constant() for w in setup.waveforms)
     preset = setup.preset if noise else setup.preset.ideal()
     return dataclasses.replace(setup, waveforms=waveforms, preset=preset)
+
+
+def render_noise_floor(setup: Setup, *, frequency_hz: float) -> Setup:
+    """The flicker-free scene whose render noise is redrawn at ``frequency_hz``: the
+    render-noise floor of a flicker figure (DESIGN.md, render quality).
+
+    Every lamp is at its mean, but the image alternates (square wave, 50 % duty)
+    between ``C + D / sqrt 2`` and ``C - D / sqrt 2``, where ``C`` is the rendered
+    basis and ``D`` its error sample (half the difference of two independent half
+    renders, with the variance of ``C``'s error). The two states differ by an
+    error of variance 2 var(C): as two independent renders of the achieved
+    quality would. Events of this run beyond those of the flicker-free run are
+    what render noise alone causes when lamp flicker re-mixes the noisy images
+    at its fundamental frequency; full decorrelation at every transition makes
+    it an upper estimate of render noise's share.
+    """
+    if setup.current_noise is None:
+        raise ValueError("render_noise_floor: this setup carries no render-noise sample")
+    if not frequency_hz > 0:
+        raise ValueError(f"render_noise_floor: frequency_hz must be > 0, got {frequency_hz!r}")
+    period = 1.0 / frequency_hz
+    a = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5})
+    b = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5, "phase_s": 0.5 * period})
+    k = setup.current_basis.shape[1]
+    means = np.array([w.constant()(0.0) for w in setup.waveforms], float).reshape(1, k, 1, 1)
+    # A PWM at duty 0.5 has values 0 and 2 (mean 1), so each half of the basis carries half the weight.
+    half = 0.5 * means * setup.current_basis
+    d = 0.5 * means * setup.current_noise / np.sqrt(2.0)
+    basis = np.concatenate([half + d, half - d], axis=1)
+    return dataclasses.replace(setup, current_basis=basis, waveforms=(a,) * k + (b,) * k, current_noise=None)
 
 
 def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -152,7 +188,8 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
     dark = float(preset.noise.dark_current_a)
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,
              "flicker": flicker, "noise": noise, "variant": setup.variant.variant,
-             "scene_toml": resolved_config(m), "emulators": list(emulators)}
+             "scene_toml": resolved_config(m), "emulators": list(emulators),
+             "render_noise_json": json.dumps(setup.render_quality, default=float)}
     pixel_s = 0.0
     event_s = {n: 0.0 for n in emulators}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
@@ -188,7 +225,7 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
     return {
         "out": str(out), "width": w, "height": h, "steps": n_steps, "duration_s": setup.duration_s,
         "counts": counts, "rates_hz": {k: v / setup.duration_s for k, v in counts.items()},
-        "render_s": render_s, "pixel_s": pixel_s, "event_s": event_s,
+        "render_s": render_s, "pixel_s": pixel_s, "event_s": event_s, "render_noise": setup.render_quality,
         "pixel_steps_per_s": pixel_steps / max(pixel_s, 1e-12),
         "total_s": time.perf_counter() - start, "frames": len(frame_t),
     }

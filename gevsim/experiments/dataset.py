@@ -39,7 +39,8 @@ import numpy as np
 
 from gevsim import __version__
 from gevsim.config import TomlReader, read_toml
-from gevsim.emulation.config import EMULATORS, RENDER_KEYS, EmulationConfig
+from gevsim.emulation.config import EMULATORS, EmulationConfig
+from gevsim.render.manifest import check_render_overrides
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.io import EventReader, atomic_write_text, export_evreal
 from gevsim.reconstruct.tonemap import ToneMap
@@ -142,10 +143,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     check_keys(ds, KEYS, source=r.source, where="dataset")
     emulators = _names(r, ds, "dataset", "emulators", list(DatasetConfig.emulators), _one_of(EMULATORS, "emulator"))
     render = r.table(ds, "render", "dataset.")
-    check_keys(render, RENDER_KEYS, source=r.source, where="dataset.render")
-    for key in ("width", "height", "spp"):
-        if key in render:
-            r.number(render, key, "dataset.render", positive=True, integer=True)
+    check_render_overrides(render, r, "dataset.render")
     evreal = ds.get("evreal", False)
     if not isinstance(evreal, bool):
         r.fail("dataset.evreal", f"expected true or false, got {evreal!r}")

@@ -1,11 +1,15 @@
 """Studies: sweeps of emulation parameters, each run with its counterfactuals.
 
 A study config names a base emulation and sweep axes; every combination is a
-run. Each run is emulated three times on the same scene and seed (DESIGN.md,
+run. Each run is emulated four times on the same scene and seed (DESIGN.md,
 Counterfactual runs): as is, with every lamp waveform replaced by its mean,
-and with an ideal pixel as well. Flicker-induced events are the events of the
-run minus those without flicker; noise-induced events those without flicker
-minus those of the ideal pixel. Reconstructions of the run are scored against
+with an ideal pixel as well, and the render-noise floor (ideal pixel, lamps at
+their mean, the render's noise redrawn at the lamp frequency:
+:func:`gevsim.emulation.driver.render_noise_floor`). Flicker-induced events
+are the events of the run minus those without flicker; noise-induced events
+those without flicker minus those of the ideal pixel; the render-noise floor
+the floor run's events minus the ideal run's. A flicker-induced rate near its
+floor is set by the renderer, not by the scene. Reconstructions of the run are scored against
 the flicker-free reference. Each run's result is written atomically as
 ``runs/<id>.json``; a rerun skips finished runs, so interrupted studies resume.
 
@@ -61,6 +65,7 @@ from gevsim.emulation.config import EMULATORS, STREAMS, EmulationConfig
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.io import atomic_write_text
 from gevsim.pixel import load_preset
+from gevsim.render.manifest import check_render_overrides
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
               "frame_rate_hz", "seed", "methods", "render", "chunk_steps")
@@ -69,6 +74,8 @@ SENSOR_AXES = ("threshold_mismatch_ln", "cutoff_hz", "max_cutoff_hz", "dark_curr
                "pixel_pitch_m", "fill_factor", "refractory_s", "threshold_on_ln", "threshold_off_ln")
 AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicker_scale", "scene", "sensor",
         "thresholds_ln", "hysteresis_ln") + SENSOR_AXES
+#: Alternation frequency of the render-noise floor when the swept lamp is steady.
+DEFAULT_FLOOR_HZ = 100.0
 WAVEFORMS = ("native", "pwm", "sinusoid", "fluorescent", "sodium_hid", "incandescent", "dc")
 
 
@@ -138,6 +145,7 @@ def load_study(path: str | Path) -> Study:
         needs = ("gradient_rc" if method.endswith("_rc") else "gradient") if base_method in GRADIENT_METHODS else "dvs"
         if needs not in emulators:
             r.fail("study.methods", f"method {method!r} needs the {needs!r} emulator in study.emulators")
+    check_render_overrides(r.table(st, "render", "study."), r, "study.render")
     rep = r.table(raw, "report")
     check_keys(rep, ("x", "lines"), source=src, where="report")
     for key in ("x", "lines"):
@@ -234,23 +242,32 @@ def event_rate_spectrum(events: np.ndarray, duration_s: float, *, bin_s: float =
 def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> dict:
     """Emulate a run and its counterfactuals, score reconstructions; return the result row."""
     from gevsim.emulation import prepare, run
+    from gevsim.emulation.driver import render_noise_floor
     from gevsim.emulation.summary import summarize
     from gevsim.reconstruct.runner import reconstruct_file
 
     cfg = run_config(study, params)
     folder.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    variants = {"run": dict(), "no_flicker": dict(flicker=False), "ideal": dict(flicker=False, noise=False)}
+    variants = {"run": dict(), "no_flicker": dict(flicker=False), "ideal": dict(flicker=False, noise=False),
+                "render_floor": dict(noise=False)}
     stats, info = {}, {}
-    setup = prepare(cfg, cache_dir=cache_dir)  # rendered (or loaded) once for all three
+    setup = prepare(cfg, cache_dir=cache_dir)  # rendered (or loaded) once for all four
+    frequency = flicker_frequency_hz(study, params, cfg)
     for name, kw in variants.items():
-        info[name] = run(cfg, folder / f"{name}.h5", setup=setup, **kw)
+        # The render-noise floor: ideal pixel, lamps at their mean, render noise redrawn at the lamp frequency.
+        use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" else setup
+        info[name] = run(cfg, folder / f"{name}.h5", setup=use, **kw)
         stats[name] = summarize(folder / f"{name}.h5")
     pixels = info["run"]["width"] * info["run"]["height"]
     duration = info["run"]["duration_s"]
     row = {"id": run_id(study, params), **{k: v for k, v in params.items()}, "pixels": pixels,
            "duration_s": duration, "steps": info["run"]["steps"],
-           "flicker_frequency_hz": flicker_frequency_hz(study, params, cfg)}
+           "flicker_frequency_hz": frequency}
+    quality = setup.render_quality
+    row.update({"render_spp_min": quality["spp_min"], "render_spp_max": quality["spp_max"],
+                "render_se_ln": quality["se_ln"]["at_percentile"], "render_se_percentile": quality["percentile"],
+                "render_target_ln": quality["target_ln"], "render_target_reached": quality["reached"]})
     for emulator in study.base["emulators"]:
         stream = STREAMS[emulator]
         counts = {k: stats[k][stream]["count"] for k in variants}
@@ -259,6 +276,7 @@ def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> 
         row[f"{emulator}_flicker_per_pixel_s"] = (counts["run"] - counts["no_flicker"]) / (pixels * duration)
         row[f"{emulator}_noise_per_pixel_s"] = (counts["no_flicker"] - counts["ideal"]) / (pixels * duration)
         row[f"{emulator}_scene_per_pixel_s"] = counts["ideal"] / (pixels * duration)
+        row[f"{emulator}_render_floor_per_pixel_s"] = (counts["render_floor"] - counts["ideal"]) / (pixels * duration)
     if "dvs_flicker_per_pixel_s" in row and "gradient_flicker_per_pixel_s" in row:
         row["flicker_rejection_ratio"] = row["dvs_flicker_per_pixel_s"] / max(row["gradient_flicker_per_pixel_s"],
                                                                               1.0 / (pixels * duration))

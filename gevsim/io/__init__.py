@@ -2,7 +2,7 @@
 
 from gevsim.io.atomic import atomic_path, atomic_write_text
 from gevsim.io.evreal import export_evreal, import_evreal
-from gevsim.io.exr import read_exr, write_exr
+from gevsim.io.exr import read_exr, read_exr_layers, write_exr, write_exr_layers
 from gevsim.io.hdf5 import EventReader, EventWriter
 from gevsim.io.text import export_text, import_text
 
@@ -16,5 +16,7 @@ __all__ = [
     "import_evreal",
     "import_text",
     "read_exr",
+    "read_exr_layers",
     "write_exr",
+    "write_exr_layers",
 ]

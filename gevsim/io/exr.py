@@ -42,3 +42,42 @@ def read_exr(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
         image = np.stack([np.array(chans[n].pixels, dtype=np.float32) for n in names], axis=-1)
         meta = header.get("gevsim")
     return image, (json.loads(meta) if isinstance(meta, str) else {})
+
+
+def write_exr_layers(path: str | os.PathLike, layers: dict, *, metadata: dict | None = None) -> None:
+    """Write named (H, W, C) float32 images (C = 1 or 3) into one EXR, atomically.
+
+    Channels are named ``<layer>.R``/``.G``/``.B`` (or ``<layer>.Y``).
+    """
+    channels = {}
+    for name, image in layers.items():
+        image = np.asarray(image, dtype=np.float32)
+        if image.ndim == 2:
+            image = image[..., None]
+        if image.ndim != 3 or image.shape[2] not in _CHANNELS:
+            raise ValueError(f"write_exr_layers: layer {name!r} must be (H, W), (H, W, 1) or (H, W, 3), "
+                             f"got shape {image.shape}")
+        for i, c in enumerate(_CHANNELS[image.shape[2]]):
+            channels[f"{name}.{c}"] = np.ascontiguousarray(image[..., i])
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    if metadata:
+        header["gevsim"] = json.dumps(metadata, sort_keys=True)
+    with atomic_path(path, suffix=".exr") as tmp:
+        with OpenEXR.File(header, channels) as f:
+            f.write(str(tmp))
+
+
+def read_exr_layers(path: str | os.PathLike) -> tuple[dict, dict]:
+    """Read an EXR written by :func:`write_exr_layers`: ``{layer: (H, W, C) float32}`` and its metadata."""
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        header = f.header()
+        chans = {n: np.array(c.pixels, dtype=np.float32) for n, c in f.channels().items()}
+        meta = header.get("gevsim")
+    layers = {}
+    for full in chans:
+        layer = full.rsplit(".", 1)[0]
+        if layer in layers:
+            continue
+        names = [f"{layer}.{c}" for c in ("R", "G", "B") if f"{layer}.{c}" in chans] or [f"{layer}.Y"]
+        layers[layer] = np.stack([chans[n] for n in names], axis=-1)
+    return layers, (json.loads(meta) if isinstance(meta, str) else {})

@@ -1,12 +1,16 @@
 """Light-group basis rendering with an on-disk cache, and radiance at any time.
 
-For each pose, one image per light group is rendered (other groups off, same
-seed). Radiance at time t is ``sum_k w_k(t) * B_k(pose(t))``, where
-``B_k(pose(t))`` blends linearly between the two poses around t.
+For each pose, one image per light group is rendered from the same paths
+(:mod:`gevsim.render.integrator`), in independent batches until the noise
+target of the manifest's ``[render]`` table is met (:mod:`gevsim.render.convergence`)
+or a fixed ``spp`` is reached. Radiance at time t is
+``sum_k w_k(t) * B_k(pose(t))``, where ``B_k(pose(t))`` blends linearly
+between the two poses around t.
 
-Basis images are cached as float32 EXR files named by a hash of the scene
-content, pose, light group, spp, seed and variant, so a second run renders
-nothing.
+Each pose is cached as one float32 EXR (every group's image, its noise sample
+and the per-pixel ln error map) named by a hash of the scene content, pose,
+groups, seed, sampler and variant. Quality is recorded in the file, not in the
+name: a cached render that meets a request serves it (:func:`serves`).
 """
 
 from __future__ import annotations
@@ -24,11 +28,26 @@ import numpy as np
 
 import gevsim
 from gevsim.illumination import Waveform, weights_at
-from gevsim.io import read_exr, write_exr
+from gevsim.io import read_exr_layers, write_exr_layers
+from gevsim.optics import luminance
+from gevsim.render.convergence import (MIN_BATCHES, BatchAccumulator, NoiseReport, mixture_weights,
+                                       next_batch_spp)
+from gevsim.render.manifest import RenderSettings
 from gevsim.render.scene import MitsubaScene, content_hash
 from gevsim.render.trajectory import Pose
 
 log = logging.getLogger(__name__)
+
+#: Bump when the cached file layout or the estimator changes.
+CACHE_VERSION = 2
+#: Paths traced per batch at most (memory of one JIT wavefront, ~100 B a path per group).
+MAX_BATCH_PATHS = 2**22
+#: Samples per pixel of the first batches in noise-target mode.
+FIRST_BATCH_SPP = 4
+#: ``noise_target_ln = "auto"``: this fraction of the smallest event threshold ...
+AUTO_TARGET_FRACTION = 0.1
+#: ... which, when rendering without a sensor, is this (ln units; a typical gradient threshold).
+DEFAULT_THRESHOLD_LN = 0.05
 
 
 def default_cache_dir() -> Path:
@@ -38,17 +57,122 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "gevsim"
 
 
-def cache_key(scene: MitsubaScene, pose: Pose, group: str) -> str:
+def cache_key(scene: MitsubaScene, pose: Pose) -> str:
+    """Key of a pose's basis images: what fixes their expectation and their random numbers.
+
+    Quality (spp, noise target) is not in the key: the cached file records what
+    it achieved, and a better image may serve a lesser request (:func:`serves`).
+    """
     r = scene.manifest.render
     payload = {
         "scene": content_hash(scene.manifest),
         "pose": pose.key(),
-        "group": group,
-        "spp": r.spp,
+        "groups": list(scene.manifest.group_names),
         "seed": r.seed,
+        "sampler": r.sampler,
         "variant": scene.variant.variant,
+        "one_pass": scene.one_pass,
+        "version": CACHE_VERSION,
     }
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:32]
+
+
+def serves(meta: dict, se_map: np.ndarray | None, request: dict) -> bool:
+    """Whether a cached render (its metadata and error map) meets a request (:func:`quality_request`).
+
+    A fixed request is met by any render with at least as many samples. A
+    noise-target request is met by a render with at least its ``max_spp``, or
+    one whose error map (computed for the same lamp mixtures and floor) meets
+    the target at the requested percentile.
+    """
+    spp = int(meta.get("spp", 0))
+    if request["target_ln"] is None:
+        return spp >= request["spp"]
+    if spp >= request["max_spp"]:
+        return True
+    mixtures = np.asarray(meta.get("mixtures", []), float)
+    if (se_map is None or mixtures.shape != request["mixtures"].shape or meta.get("floor_rel") != request["floor_rel"]
+            or meta.get("metric") != request["metric"]):
+        return False
+    if not np.allclose(mixtures, request["mixtures"]):
+        return False
+    return float(np.percentile(se_map, request["percentile"])) <= request["target_ln"]
+
+
+def quality_request(settings: RenderSettings, mixtures: np.ndarray, target_ln: float | None) -> dict:
+    """What a render must achieve: fixed ``spp``, or a resolved noise target with its limits."""
+    return {"spp": settings.spp, "target_ln": target_ln, "percentile": settings.noise_percentile,
+            "max_spp": settings.max_spp, "mixtures": np.asarray(mixtures, float), "floor_rel": settings.noise_floor_rel,
+            "metric": settings.noise_metric}
+
+
+def resolve_target(settings: RenderSettings, smallest_threshold_ln: float | None = None) -> float | None:
+    """The noise target in ln units (None in fixed mode); ``"auto"`` is 0.1 x the smallest event threshold."""
+    if settings.noise_target_ln is None:
+        return None
+    if settings.noise_target_ln == "auto":
+        return AUTO_TARGET_FRACTION * (smallest_threshold_ln or DEFAULT_THRESHOLD_LN)
+    return float(settings.noise_target_ln)
+
+
+def batch_seed(seed: int, batch: int) -> int:
+    """Sampler seed of batch ``batch`` of a render with seed ``seed`` (independent streams)."""
+    return int(np.random.SeedSequence([int(seed), int(batch)]).generate_state(1)[0])
+
+
+def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = None):
+    """Render the current pose's K group images in batches until the request is met.
+
+    Returns ``(images, noise, report)``: (K, H, W, C) mean and noise sample
+    (:meth:`BatchAccumulator.noise`) and a :class:`NoiseReport`. A fixed
+    request renders ``spp`` in an even number of equal batches (rounded up).
+    """
+    r = scene.manifest.render
+    acc = BatchAccumulator(request["mixtures"], floor_rel=request["floor_rel"], metric=request["metric"])
+    cap = max(1, MAX_BATCH_PATHS // (r.width * r.height))
+    target = request["target_ln"]
+    start = time.perf_counter()
+
+    def batch(spp: int) -> None:
+        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches))
+        acc.add(images, luminance(images), scene.sample_count(spp))
+
+    if target is None:
+        pairs = max(1, min(MIN_BATCHES // 2, request["spp"] // 2), -(-request["spp"] // (2 * cap)))
+        size = max(1, -(-request["spp"] // (2 * pairs)))
+        for _ in range(2 * pairs):
+            batch(size)
+        stopped = "fixed"
+    else:
+        stopped = None
+        while stopped is None:
+            size = next_batch_spp(acc.spp, first=FIRST_BATCH_SPP, cap=cap)
+            size = max(1, min(size, (request["max_spp"] - acc.spp) // 2))
+            for _ in range(2):
+                batch(size)
+            elapsed = time.perf_counter() - start
+            if acc.batches >= MIN_BATCHES and acc.percentiles(request["percentile"])["at_percentile"] <= target:
+                stopped = "target"
+            elif acc.spp >= request["max_spp"] - 1:
+                stopped = "max_spp"
+            elif budget_s is not None and elapsed * (1.0 + 2.0 * size / acc.spp) > budget_s:
+                stopped = "time_budget"
+    report = NoiseReport(spp=acc.spp, batches=acc.batches, se_ln_percentiles=acc.percentiles(request["percentile"]),
+                         percentile=request["percentile"], target_ln=target, stopped_by=stopped,
+                         seconds=time.perf_counter() - start)
+    return acc.mean(), acc.noise(), acc.se_ln().astype(np.float32), report
+
+
+def summarize_quality(quality: list) -> dict:
+    """Worst case over poses of the achieved noise (what every output records)."""
+    if not quality:
+        return {}
+    se = {k: max(q["se_ln"][k] for q in quality) for k in quality[0]["se_ln"]}
+    return {"spp_min": min(q["spp"] for q in quality), "spp_max": max(q["spp"] for q in quality),
+            "se_ln": se, "percentile": quality[0]["percentile"], "target_ln": quality[0]["target_ln"],
+            "reached": all(q["target_ln"] is None or q["se_ln"]["at_percentile"] <= q["target_ln"] for q in quality),
+            "stopped_by": sorted({q["stopped_by"] for q in quality}), "denoised": False,
+            "render_s": float(sum(q["seconds"] for q in quality))}
 
 
 @dataclass
@@ -61,8 +185,12 @@ class BasisSet:
     groups : names of the K light groups.
     images : float32 (P, K, H, W, C) radiance, W/(m^2 sr) photopic-equivalent.
     waveforms : the K waveforms, in group order.
-    keys : (P, K) cache keys.
-    render_s : (P, K) seconds each render took (0 for cache hits).
+    keys : (P,) cache keys.
+    render_s : (P,) seconds each pose's render took (0 for cache hits).
+    noise : float32 (P, K, H, W, C): half the difference of two independent
+        half renders, an error sample with the variance of ``images``' error
+        (the render-noise floor is built from it).
+    quality : per pose, the :class:`~gevsim.render.convergence.NoiseReport` as a dict.
     """
 
     times_s: np.ndarray
@@ -71,6 +199,12 @@ class BasisSet:
     waveforms: tuple[Waveform, ...]
     keys: list = field(default_factory=list)
     render_s: np.ndarray | None = None
+    noise: np.ndarray | None = None
+    quality: list = field(default_factory=list)
+
+    def noise_summary(self) -> dict:
+        """Achieved render noise over all poses: worst percentiles of the ln standard error, spp range."""
+        return summarize_quality(self.quality)
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -108,51 +242,92 @@ def render_basis(
     cache_dir: str | os.PathLike | None = None,
     times_s: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
+    smallest_threshold_ln: float | None = None,
 ) -> BasisSet:
-    """Render (or load from cache) every light group at every pose.
+    """Render (or load from cache) every light group at every pose, to the manifest's quality.
 
-    ``progress(done, total)`` is called after each pose.
+    ``smallest_threshold_ln`` resolves ``noise_target_ln = "auto"``.
+    ``progress(done, total)`` is called after each pose. A render that stops
+    short of its noise target (``max_spp`` or ``time_budget_s``) logs a warning
+    with the numbers.
     """
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     cache.mkdir(parents=True, exist_ok=True)
+    m = scene.manifest
+    r = m.render
     times = scene.pose_times() if times_s is None else np.asarray(times_s, float)
-    groups = scene.manifest.group_names
-    images, keys = [], []
-    seconds = np.zeros((len(times), len(groups)))
+    groups = m.group_names
+    waveforms = tuple(scene.group(g).waveform for g in groups)
+    mixtures = mixture_weights([w.value_range() for w in waveforms])
+    request = quality_request(r, mixtures, resolve_target(r, smallest_threshold_ln))
+    images, noise, keys, quality = [], [], [], []
+    seconds = np.zeros(len(times))
+    started = time.perf_counter()
     for p, t in enumerate(times):
         pose = scene.pose_at(float(t))
-        posed = False
-        row, row_keys = [], []
-        for k, name in enumerate(groups):
-            key = cache_key(scene, pose, name)
-            path = cache / f"{key}.exr"
-            if path.exists():
-                img, _ = read_exr(path)
-            else:
-                if not posed:
-                    scene.set_pose(pose)
-                    posed = True
-                scene.set_groups({name})
-                start = time.perf_counter()
-                img = scene.render()
-                seconds[p, k] = time.perf_counter() - start
-                meta = {"group": name, "t_s": float(t), "scene": scene.manifest.name,
-                        "variant": scene.variant.variant, "gevsim": gevsim.__version__}
-                write_exr(path, img, metadata=meta)
-            row.append(img)
-            row_keys.append(key)
-        images.append(row)
-        keys.append(row_keys)
+        key = cache_key(scene, pose)
+        path = cache / f"{key}.exr"
+        cached = _read_cached(path, groups)
+        if cached is not None and serves(cached[3], cached[2], request):
+            mean, err, _, meta = cached
+            quality.append(meta["report"])
+        else:
+            scene.set_pose(pose)
+            budget = None
+            if r.time_budget_s is not None:
+                budget = max(0.0, r.time_budget_s - (time.perf_counter() - started)) / (len(times) - p)
+            mean, err, se_map, report = render_pose(scene, request, budget_s=budget)
+            seconds[p] = report.seconds
+            quality.append(report.as_dict())
+            layers = {f"group{k}": mean[k] for k in range(len(groups))}
+            layers.update({f"noise{k}": err[k] for k in range(len(groups))})
+            layers["se_ln"] = se_map
+            meta = {"groups": list(groups), "t_s": float(t), "scene": m.name, "variant": scene.variant.variant,
+                    "gevsim": gevsim.__version__, "spp": report.spp, "report": report.as_dict(),
+                    "mixtures": request["mixtures"].tolist(), "floor_rel": request["floor_rel"],
+                    "metric": request["metric"],
+                    "sampler": r.sampler, "one_pass": scene.one_pass}
+            write_exr_layers(path, layers, metadata=meta)
+        images.append(mean)
+        noise.append(err)
+        keys.append(key)
         if progress:
             progress(p + 1, len(times))
     rendered = int((seconds > 0).sum())
-    log.info("basis: %d poses x %d groups, %d rendered, %d from cache", len(times), len(groups), rendered,
-             seconds.size - rendered)
+    summary = summarize_quality(quality)
+    log.info("basis: %d poses x %d groups, %d rendered, %d from cache; %d-%d spp, p%g ln error %.4g (target %s)",
+             len(times), len(groups), rendered, len(times) - rendered, summary["spp_min"], summary["spp_max"],
+             summary["percentile"], summary["se_ln"]["at_percentile"], summary["target_ln"])
+    if not summary["reached"]:
+        log.warning("render of %r stopped short of its noise target: p%g of the ln standard error is %.4g > %.4g "
+                    "after %d spp (stopped by %s). Flicker-induced gradient events may be render noise: compare "
+                    "them with the render-noise floor, or raise [render] max_spp / time_budget_s.",
+                    m.name, summary["percentile"], summary["se_ln"]["at_percentile"], summary["target_ln"],
+                    summary["spp_max"], ", ".join(summary["stopped_by"]))
     return BasisSet(
         times_s=times,
         groups=groups,
         images=np.asarray(images, np.float32),
-        waveforms=tuple(scene.group(g).waveform for g in groups),
+        waveforms=waveforms,
         keys=keys,
         render_s=seconds,
+        noise=np.asarray(noise, np.float32),
+        quality=quality,
     )
+
+
+def _read_cached(path: Path, groups: tuple[str, ...]):
+    """(mean, noise, se_map, meta) of a cached pose, or None when absent or unreadable."""
+    if not path.exists():
+        return None
+    try:
+        layers, meta = read_exr_layers(path)
+        mean = np.stack([layers[f"group{k}"] for k in range(len(groups))])
+        err = np.stack([layers[f"noise{k}"] for k in range(len(groups))])
+        se_map = layers["se_ln"][..., 0]
+    except Exception as exc:  # a corrupt or foreign file is re-rendered, not fatal
+        log.warning("cache file %s is unreadable (%s); rendering again", path, exc)
+        return None
+    if meta.get("groups") != list(groups) or "report" not in meta:
+        return None
+    return mean, err, se_map, meta

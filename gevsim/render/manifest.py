@@ -24,7 +24,14 @@ from gevsim.illumination import Waveform, from_spec as waveform_from_spec
 
 TABLES = ("scene", "render", "sequence", "camera", "motion", "light_groups", "optics")
 SCENE_KEYS = ("name", "description", "builder", "options", "extends")
-RENDER_KEYS = ("width", "height", "spp", "seed", "flavour", "max_depth", "max_px_per_pose")
+QUALITY_KEYS = ("noise_target_ln", "noise_percentile", "max_spp", "time_budget_s", "sampler", "noise_floor_rel",
+                "noise_metric")
+NOISE_METRICS = ("flicker", "absolute")  # see gevsim.render.convergence
+RENDER_KEYS = ("width", "height", "spp", "seed", "flavour", "max_depth", "max_px_per_pose") + QUALITY_KEYS
+#: ``[render]`` keys that emulation, study and dataset configs may override.
+OVERRIDE_KEYS = ("width", "height", "spp", "seed", "max_px_per_pose") + QUALITY_KEYS
+#: Mitsuba samplers a scene may use (``[render] sampler``).
+SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 SEQUENCE_KEYS = ("duration_s",)
 CAMERA_KEYS = ("fov_deg", "keyframes")
 CAMERA_KEY_KEYS = ("t_s", "origin", "target", "up")
@@ -84,6 +91,22 @@ class Motion:
 
 @dataclass(frozen=True)
 class RenderSettings:
+    """How a scene is rendered.
+
+    Two modes. *Fixed*: ``spp`` samples per pixel (drafts). *Noise target*
+    (when ``noise_target_ln`` is set): render in independent batches until the
+    ``noise_percentile`` percentile over pixels of the standard error of
+    ln(luminance), for the lamp mixtures the waveforms reach, is at most
+    ``noise_target_ln``, or ``max_spp`` / ``time_budget_s`` is reached (see
+    :mod:`gevsim.render.convergence`). ``noise_target_ln = "auto"`` is 0.1 x
+    the smallest event threshold of the sensor an emulation uses (0.1 x 0.05 ln
+    when rendering alone). ``noise_floor_rel`` keeps near-black pixels from
+    dominating: the error is taken relative to (value + noise_floor_rel x the
+    mixture's mean). ``noise_metric`` chooses the error measured: of the change
+    of ln luminance between lamp mixtures (``"flicker"``, default) or of ln
+    luminance itself (``"absolute"``).
+    """
+
     width: int = 346
     height: int = 260
     spp: int = 16
@@ -91,6 +114,18 @@ class RenderSettings:
     flavour: str = "rgb"
     max_depth: int = 5
     max_px_per_pose: float = 1.0
+    noise_target_ln: float | str | None = None
+    noise_percentile: float = 99.0
+    max_spp: int = 16384
+    time_budget_s: float | None = None
+    sampler: str = "independent"
+    noise_floor_rel: float = 1e-3
+    noise_metric: str = "flicker"
+
+    @property
+    def targeted(self) -> bool:
+        """Whether this is the noise-target mode (else a fixed ``spp``)."""
+        return self.noise_target_ln is not None
 
 
 @dataclass(frozen=True)
@@ -194,6 +229,7 @@ def load(scene: str | Path) -> SceneManifest:
         flavour=str(rt.get("flavour", d.flavour)),
         max_depth=r.number(rt, "max_depth", "render", d.max_depth, positive=True, integer=True),
         max_px_per_pose=float(r.number(rt, "max_px_per_pose", "render", d.max_px_per_pose, positive=True)),
+        **quality_settings(rt, r, "render"),
     )
     if render.flavour not in ("rgb", "mono", "spectral"):
         r.fail("render.flavour", f"expected 'rgb', 'mono' or 'spectral', got {render.flavour!r}")
@@ -284,6 +320,56 @@ def load(scene: str | Path) -> SceneManifest:
     )
 
 
+def check_render_overrides(table: dict, r: TomlReader, where: str) -> None:
+    """Validate a ``[render]`` override table of an emulation, study or dataset config."""
+    check_keys(table, OVERRIDE_KEYS, source=r.source, where=where)
+    for key in ("width", "height", "spp"):
+        if key in table:
+            r.number(table, key, where, positive=True, integer=True)
+    if "seed" in table:
+        r.number(table, "seed", where, minimum=0, integer=True)
+    if "max_px_per_pose" in table:
+        r.number(table, "max_px_per_pose", where, positive=True)
+    quality_settings(table, r, where)
+
+
+def quality_settings(table: dict, r: TomlReader, where: str) -> dict:
+    """The render-quality keys of a ``[render]`` table, validated (errors name the key)."""
+    out = {}
+    if "spp" in table and "noise_target_ln" in table:
+        r.fail(f"{where}.spp", "give either spp (a fixed sample count, for drafts) or noise_target_ln "
+                               "(render until the noise target is met), not both")
+    if "noise_target_ln" in table:
+        target = table["noise_target_ln"]
+        if target != "auto":
+            target = float(r.number(table, "noise_target_ln", where, positive=True))
+        out["noise_target_ln"] = target
+    if "noise_percentile" in table:
+        p = float(r.number(table, "noise_percentile", where, positive=True))
+        if p > 100:
+            r.fail(f"{where}.noise_percentile", f"must be in (0, 100], got {p!r}")
+        out["noise_percentile"] = p
+    if "max_spp" in table:
+        out["max_spp"] = r.number(table, "max_spp", where, minimum=1, integer=True)
+    if "time_budget_s" in table:
+        out["time_budget_s"] = float(r.number(table, "time_budget_s", where, positive=True))
+    if "noise_floor_rel" in table:
+        out["noise_floor_rel"] = float(r.number(table, "noise_floor_rel", where, positive=True))
+    if "noise_metric" in table:
+        metric = table["noise_metric"]
+        if metric not in NOISE_METRICS:
+            r.fail(f"{where}.noise_metric", f"unknown noise metric {metric!r}{suggest(str(metric), NOISE_METRICS)}; "
+                                            f"one of {', '.join(NOISE_METRICS)}")
+        out["noise_metric"] = metric
+    if "sampler" in table:
+        sampler = table["sampler"]
+        if sampler not in SAMPLERS:
+            r.fail(f"{where}.sampler", f"unknown sampler {sampler!r}{suggest(str(sampler), SAMPLERS)}; "
+                                       f"one of {', '.join(SAMPLERS)}")
+        out["sampler"] = sampler
+    return out
+
+
 def _check_times(times, r: TomlReader, where: str) -> None:
     if any(b <= a for a, b in zip(times, times[1:])):
         r.fail(where, f"keyframe times must increase strictly, got {times}")
@@ -326,23 +412,36 @@ def _light_group(name: str, spec: dict, r: TomlReader) -> LightGroup:
     return LightGroup(name=str(name), emitters=tuple(emitters), waveform=waveform, emission=emission)
 
 
-def override(manifest: SceneManifest, **changes) -> SceneManifest:
-    """A copy with render settings (width, height, spp, seed, max_px_per_pose) or
-    ``duration_s`` replaced; ``None`` values are ignored. ``raw`` follows suit."""
+def override(manifest: SceneManifest, *, source: str | None = None, **changes) -> SceneManifest:
+    """A copy with render settings (``[render]`` keys) or ``duration_s`` replaced;
+    ``None`` values are ignored. ``raw`` follows suit.
+
+    Giving ``spp`` without ``noise_target_ln`` switches to the fixed mode;
+    giving ``noise_target_ln`` switches to the noise-target mode. ``source``
+    names the file the changes come from, for error messages.
+    """
     import copy
     import dataclasses
 
     changes = {k: v for k, v in changes.items() if v is not None}
     raw = copy.deepcopy(manifest.raw)
     duration = changes.pop("duration_s", manifest.duration_s)
-    if duration <= 0 or not math.isfinite(duration):
-        raise ConfigError(f"duration must be > 0, got {duration!r}", key="duration_s")
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not duration > 0 \
+            or not math.isfinite(duration):
+        raise ConfigError(f"duration must be > 0, got {duration!r}", source=source, key="duration_s")
     for key, value in changes.items():
         if key not in RENDER_KEYS:
-            raise ConfigError(f"cannot override {key!r}{suggest(key, RENDER_KEYS)}", key=key)
+            raise ConfigError(f"cannot override {key!r}{suggest(key, RENDER_KEYS)}", source=source, key=key)
         if isinstance(value, (int, float)) and key != "seed" and value <= 0:
-            raise ConfigError(f"must be > 0, got {value!r}", key=key)
-        raw.setdefault("render", {})[key] = value
+            raise ConfigError(f"must be > 0, got {value!r}", source=source, key=f"render.{key}")
+    changes.update(quality_settings(changes, TomlReader(source or "overrides"), "render"))
+    render = raw.setdefault("render", {})
+    if "spp" in changes:  # a fixed sample count: the draft mode
+        changes["noise_target_ln"] = None
+        render.pop("noise_target_ln", None)
+    if changes.get("noise_target_ln") is not None:
+        render.pop("spp", None)
+    render.update({k: v for k, v in changes.items() if v is not None})
     raw.setdefault("sequence", {})["duration_s"] = duration
     return dataclasses.replace(
         manifest, render=dataclasses.replace(manifest.render, **changes), duration_s=duration, raw=raw

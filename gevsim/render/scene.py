@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from gevsim.errors import ConfigError, suggest
-from gevsim.render import backend
+from gevsim.render import backend, integrator
 from gevsim.render.manifest import Emission, LightGroup, SceneManifest
 from gevsim.render.trajectory import Pose, pose_at, pose_times
 
@@ -119,6 +119,7 @@ class MitsubaScene:
             raise ConfigError(f"Mitsuba could not load the scene: {exc}", source=str(manifest.builder)) from exc
         self.params = mi.traverse(self.scene)
         self._group_keys = self._find_group_keys()
+        self._group_emitters = None
         self._original = {k: type(self.params[k])(self.params[k]) for keys in self._group_keys.values() for k in keys}
         self._rest = {}
         self.centres = {}
@@ -202,7 +203,7 @@ class MitsubaScene:
                     "rfilter": {"type": "box"},
                     "pixel_format": "luminance" if r.flavour == "mono" else "rgb",
                 },
-                "sampler": {"type": "independent", "sample_count": r.spp},
+                "sampler": {"type": r.sampler, "sample_count": 4},
             },
             **shapes,
         }
@@ -262,6 +263,38 @@ class MitsubaScene:
             for k in keys:
                 self.params[k] = self._original[k] * scale
         self.params.update()
+
+    @property
+    def one_pass(self) -> bool:
+        """Whether all light groups render in one pass (JIT variants), else one group at a time."""
+        return integrator.supported(self.variant.variant)
+
+    def sample_count(self, spp: int) -> int:
+        """The samples per pixel the scene's sampler really takes for ``spp`` (some round it)."""
+        sampler = self.scene.sensors()[0].sampler().clone()
+        sampler.set_sample_count(int(spp))
+        return int(sampler.sample_count())
+
+    def render_groups(self, *, spp: int, seed: int) -> np.ndarray:
+        """(K, H, W, C) radiance of every light group at the current pose, from ``spp`` samples.
+
+        In JIT variants one set of paths serves all groups
+        (:func:`gevsim.render.integrator.render_groups`); in scalar variants
+        each group is rendered alone with Mitsuba's ``path`` and the same seed.
+        """
+        names = self.manifest.group_names
+        if self.one_pass:
+            self.set_groups(None)
+            if self._group_emitters is None:
+                self._group_emitters = integrator.group_emitters(self.scene, [self.group(n).emitters for n in names])
+            return integrator.render_groups(self.scene, self._group_emitters, spp=spp, seed=seed,
+                                            max_depth=self.manifest.render.max_depth)
+        images = []
+        for name in names:
+            self.set_groups({name})
+            images.append(self.render(spp=spp, seed=seed))
+        self.set_groups(None)
+        return np.stack(images)
 
     def render(self, *, spp: int | None = None, seed: int | None = None) -> np.ndarray:
         """Render the current pose and groups: float32 (H, W, C) radiance."""

@@ -53,18 +53,33 @@ def test_second_run_renders_nothing(variant, tmp_path):
     assert (first.render_s > 0).all()
     second = render_basis(sc, cache_dir=tmp_path)
     assert (second.render_s == 0).all()
-    assert np.array_equal(first.images, second.images)
-    assert len(list(tmp_path.glob("*.exr"))) == first.images.shape[0] * first.images.shape[1]
+    assert np.array_equal(first.images, second.images) and np.array_equal(first.noise, second.noise)
+    assert len(list(tmp_path.glob("*.exr"))) == first.images.shape[0]  # one file per pose, every group in it
+    assert second.quality == first.quality
 
 
-def test_cache_key_depends_on_what_changes_the_render(variant):
+def test_cache_key_depends_on_what_changes_the_render_not_on_quality(variant):
     a = MitsubaScene(small(PANEL), variant=variant)
     b = MitsubaScene(small(PANEL, spp=8), variant=variant)
     c = MitsubaScene(small(PANEL, seed=99), variant=variant)
+    d = MitsubaScene(small(PANEL, sampler="ldsampler"), variant=variant)
     pose = a.pose_at(0.0)
-    keys = {cache_key(s, pose, g) for s in (a, b, c) for g in ("panel", "lamp")}
-    assert len(keys) == 6
-    assert cache_key(a, pose, "panel") == cache_key(MitsubaScene(small(PANEL), variant=variant), pose, "panel")
+    assert cache_key(a, pose) == cache_key(b, pose)  # quality is recorded in the file, not the name
+    assert len({cache_key(s, pose) for s in (a, c, d)}) == 3
+    assert cache_key(a, pose) == cache_key(MitsubaScene(small(PANEL), variant=variant), pose)
+
+
+def test_cache_serves_better_renders_and_replaces_worse_or_corrupt_ones(variant, tmp_path):
+    eight = render_basis(MitsubaScene(small(PANEL, spp=8), variant=variant), cache_dir=tmp_path)
+    four = render_basis(MitsubaScene(small(PANEL, spp=4), variant=variant), cache_dir=tmp_path)
+    assert (four.render_s == 0).all() and four.quality[0]["spp"] == 8  # the better image serves
+    sixteen = render_basis(MitsubaScene(small(PANEL, spp=16), variant=variant), cache_dir=tmp_path)
+    assert (sixteen.render_s > 0).all() and sixteen.quality[0]["spp"] == 16
+    assert not np.array_equal(eight.images, sixteen.images)
+    (path,) = tmp_path.glob("*.exr")
+    path.write_bytes(b"not an exr")
+    again = render_basis(MitsubaScene(small(PANEL, spp=4), variant=variant), cache_dir=tmp_path)
+    assert (again.render_s > 0).all() and again.quality[0]["spp"] == 4
 
 
 def test_pan_poses_keep_motion_under_one_pixel(variant):

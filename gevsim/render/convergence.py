@@ -1,0 +1,234 @@
+"""Render to a noise target: batch statistics of ln(radiance) and the stop rule.
+
+A pose is rendered in independent batches (different sampler seeds). Each
+batch gives K light-group images ``G[k]`` from ``n_b`` samples per pixel; the
+batch means are independent and identically distributed up to their sample
+count, whatever the sampler's stratification inside a batch, so their spread
+is an honest estimate of the Monte Carlo error (Owen, *Monte Carlo theory,
+methods and examples*, 2013, ch. 2 and 17, batch means).
+
+For each lamp mixture ``w`` the waveforms reach (the corners of the box
+``[min_k, max_k]`` of the groups' waveform ranges) the pixel luminance is
+``Y(w) = sum_k w_k Y_k``. With ``N = sum n_b`` and the weighted batch mean
+``Ybar``, the per-sample variance is estimated as
+``s^2 = (sum_b n_b Y_b^2 - N Ybar^2) / (B - 1)`` and the standard error of
+``ln Ybar`` by the delta method as ``sqrt(s^2 / N) / (Ybar + floor)``. The
+``floor`` (``noise_floor_rel`` times the mixture's image mean) keeps pixels
+that a mixture leaves black from demanding unbounded samples; the
+photoreceptor's dark current plays the same part in the sensor.
+
+By default (``noise_metric = "flicker"``) the error measured is that of the
+*change* ``ln Y(w) - ln Y(wbar)`` from the time-mean mixture ``wbar``: render
+noise common to every mixture is a static pattern that no lamp turns into
+events, and the groups share their paths, so much of it is common. Its
+variance follows from the batches' covariance of ``Y(w)`` and ``Y(wbar)``.
+``noise_metric = "absolute"`` measures ln Y(w) itself.
+
+The stop rule: the ``percentile``-th percentile over pixels of the largest
+standard error over mixtures is at most the target. With B batches the
+per-pixel estimate has B - 1 degrees of freedom; its scatter can only raise a
+high percentile, so the rule errs on the side of more samples. Manabe et al.
+(ICCP 2024) stop per pixel on a test of log luminance for the same reason:
+event thresholds are contrasts, so the error that matters is that of ln.
+
+Batches are assigned alternately to two halves of equal sample count; half
+the difference of the halves, ``D = (H0 - H1) / 2``, has the variance of the
+full estimate's error, which is what the render-noise floor of an emulation
+needs (:func:`gevsim.emulation.driver.render_noise_floor`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Batches before the first check of the stop rule (7 degrees of freedom).
+MIN_BATCHES = 8
+#: Batches per growth step: batch size is kept near N / BATCH_SPREAD so B stays >= this.
+BATCH_SPREAD = 16
+
+
+def mixture_weights(ranges: list[tuple[float, float]], *, max_corners: int = 64) -> np.ndarray:
+    """(M, K) lamp mixtures to watch: the corners of the waveform-range box.
+
+    ``ranges[k]`` is ``(min, max)`` of group k's waveform. With more than
+    ``log2(max_corners)`` flickering groups, only all-minimum, all-maximum and
+    each group alone at its extreme are kept.
+    """
+    if not ranges:
+        raise ValueError("mixture_weights: no light groups")
+    lo = np.array([float(a) for a, _ in ranges])
+    hi = np.array([float(b) for _, b in ranges])
+    if np.any(~np.isfinite(lo)) or np.any(~np.isfinite(hi)) or np.any(lo < 0) or np.any(hi < lo):
+        raise ValueError(f"mixture_weights: waveform ranges must be finite with 0 <= min <= max, got {ranges}")
+    varying = np.flatnonzero(hi > lo)
+    if 2 ** len(varying) <= max_corners:
+        rows = []
+        for corner in itertools.product((0, 1), repeat=len(varying)):
+            w = lo.copy()
+            w[varying] = np.where(np.array(corner, bool), hi[varying], lo[varying])
+            rows.append(w)
+    else:
+        rows = [lo.copy(), hi.copy()]
+        for k in varying:
+            for base, extreme in ((lo, hi), (hi, lo)):
+                w = base.copy()
+                w[k] = extreme[k]
+                rows.append(w)
+    rows = [w for w in rows if w.sum() > 0] or [hi]
+    return np.unique(np.array(rows), axis=0)
+
+
+@dataclass(frozen=True)
+class NoiseReport:
+    """What a converged (or stopped) render achieved."""
+
+    spp: int
+    batches: int
+    se_ln_percentiles: dict  # {"p50": ..., "p90": ..., "p99": ..., "max": ...} of the worst mixture per pixel
+    percentile: float
+    target_ln: float | None
+    stopped_by: str  # "target", "max_spp", "time_budget", "fixed"
+    seconds: float
+
+    @property
+    def se_ln(self) -> float:
+        """The stop statistic: the ``percentile``-th percentile of the standard error of ln."""
+        return self.se_ln_percentiles["at_percentile"]
+
+    @property
+    def reached(self) -> bool:
+        return self.target_ln is None or self.se_ln <= self.target_ln
+
+    def as_dict(self) -> dict:
+        return {"spp": self.spp, "batches": self.batches, "percentile": self.percentile,
+                "target_ln": self.target_ln, "stopped_by": self.stopped_by, "seconds": self.seconds,
+                "se_ln": {k: float(v) for k, v in self.se_ln_percentiles.items()}}
+
+
+#: What the stop rule measures: the error of ln Y(w) itself ("absolute"), or of its change
+#: ln Y(w) - ln Y(wbar) from the time-mean mixture ("flicker"), the part that lamp flicker turns into events.
+METRICS = ("flicker", "absolute")
+
+
+class BatchAccumulator:
+    """Running batch statistics of K group images and the ln error of their mixtures.
+
+    Parameters
+    ----------
+    mixtures : (M, K) lamp weights (:func:`mixture_weights`).
+    floor_rel : the error is taken relative to ``Y + floor_rel * mean(Y)``.
+    reference : (K,) the time-mean mixture (every waveform has mean 1, so ones by default).
+    metric : ``"flicker"``: the standard error of ln Y(w) - ln Y(reference), by the delta
+        method with the batches' covariance. A noise pattern shared by every mixture is
+        static and causes no flicker events; only its change with the mixture does.
+        ``"absolute"``: the standard error of ln Y(w).
+    """
+
+    def __init__(self, mixtures: np.ndarray, *, floor_rel: float = 1e-3, reference: np.ndarray | None = None,
+                 metric: str = "flicker"):
+        mixtures = np.asarray(mixtures, float)
+        if mixtures.ndim != 2 or mixtures.shape[0] < 1:
+            raise ValueError(f"BatchAccumulator: mixtures must be (M, K), got shape {mixtures.shape}")
+        if not floor_rel > 0:
+            raise ValueError(f"BatchAccumulator: floor_rel must be > 0, got {floor_rel!r}")
+        if metric not in METRICS:
+            raise ValueError(f"BatchAccumulator: metric must be one of {METRICS}, got {metric!r}")
+        reference = np.ones(mixtures.shape[1]) if reference is None else np.asarray(reference, float)
+        if reference.shape != (mixtures.shape[1],):
+            raise ValueError(f"BatchAccumulator: reference must have {mixtures.shape[1]} weights, got {reference!r}")
+        self.mixtures = np.vstack([mixtures, reference])  # the last row is the reference
+        self.metric = metric
+        self.floor_rel = float(floor_rel)
+        self.spp = 0
+        self.batches = 0
+        self._half_spp = [0, 0]
+        self._halves = [None, None]  # sum of n_b * G_b per half, (K, H, W, C) float64
+        self._p = None  # sum n_b Y_b, (M + 1, H, W)
+        self._q = None  # sum n_b Y_b^2
+        self._c = None  # sum n_b Y_b Y_ref,b
+
+    def add(self, images: np.ndarray, luminance: np.ndarray, spp: int) -> None:
+        """Add a batch: ``images`` (K, H, W, C) radiance, ``luminance`` (K, H, W), from ``spp`` samples."""
+        images = np.asarray(images)
+        lum = np.asarray(luminance, float)
+        k = self.mixtures.shape[1]
+        if images.ndim != 4 or images.shape[0] != k or lum.shape != images.shape[:3]:
+            raise ValueError(f"BatchAccumulator.add: expected ({k}, H, W, C) images and ({k}, H, W) luminance, "
+                             f"got {images.shape} and {lum.shape}")
+        if spp < 1:
+            raise ValueError(f"BatchAccumulator.add: spp must be >= 1, got {spp}")
+        y = np.tensordot(self.mixtures, lum, axes=1)  # (M + 1, H, W)
+        half = 0 if self._half_spp[0] <= self._half_spp[1] else 1
+        weighted = images.astype(np.float64) * spp
+        if self._p is None:
+            self._p, self._q, self._c = spp * y, spp * y * y, spp * y * y[-1]
+            self._halves = [np.zeros_like(weighted), np.zeros_like(weighted)]
+        else:
+            self._p += spp * y
+            self._q += spp * y * y
+            self._c += spp * y * y[-1]
+        self._halves[half] += weighted
+        self._half_spp[half] += spp
+        self.spp += spp
+        self.batches += 1
+
+    def mean(self) -> np.ndarray:
+        """(K, H, W, C) float32: the estimate from every sample."""
+        return ((self._halves[0] + self._halves[1]) / self.spp).astype(np.float32)
+
+    def noise(self) -> np.ndarray:
+        """(K, H, W, C) float32: half the difference of the two halves' means.
+
+        It has (in expectation) the variance of :meth:`mean`'s error when the
+        halves hold equal sample counts; with one half empty it is zero.
+        """
+        n0, n1 = self._half_spp
+        if n0 == 0 or n1 == 0:
+            return np.zeros_like(self.mean())
+        return (0.5 * (self._halves[0] / n0 - self._halves[1] / n1)).astype(np.float32)
+
+    def se_ln(self, metric: str | None = None) -> np.ndarray:
+        """(H, W): the largest standard error over the mixtures, of ``metric`` (default: the
+        accumulator's), in ln units; inf before 2 batches."""
+        metric = self.metric if metric is None else metric
+        if self.batches < 2:
+            shape = self._p.shape[1:] if self._p is not None else (0, 0)
+            return np.full(shape, np.inf)
+        n, dof = float(self.spp), self.batches - 1
+        mean = self._p / n
+        var = np.maximum(self._q - n * mean * mean, 0.0) / dof  # per-sample variance, (M + 1, H, W)
+        scale = np.abs(mean) + self.floor_rel * mean.reshape(len(mean), -1).mean(axis=1)[:, None, None]
+        if metric == "absolute":
+            rel_var = var / scale**2
+        else:
+            cov = (self._c - n * mean * mean[-1]) / dof
+            rel_var = var / scale**2 + var[-1] / scale[-1] ** 2 - 2.0 * cov / (scale * scale[-1])
+        return np.sqrt(np.maximum(rel_var, 0.0) / n).max(axis=0)
+
+    def percentiles(self, percentile: float) -> dict:
+        se = self.se_ln()
+        other = "absolute" if self.metric == "flicker" else "flicker"
+        return {"p50": float(np.percentile(se, 50)), "p90": float(np.percentile(se, 90)),
+                "p99": float(np.percentile(se, 99)), "max": float(se.max()),
+                "at_percentile": float(np.percentile(se, percentile)),
+                f"{other}_at_percentile": float(np.percentile(self.se_ln(other), percentile))}
+
+
+def next_batch_spp(total_spp: int, *, first: int, cap: int) -> int:
+    """Samples per pixel of the next batch: ``first`` until ``BATCH_SPREAD`` batches, then about
+    total / BATCH_SPREAD, a power of two, at most ``cap``."""
+    size = first
+    if total_spp >= BATCH_SPREAD * first:
+        size = 2 ** int(math.floor(math.log2(total_spp / BATCH_SPREAD)))
+    return int(max(1, min(size, cap)))
+
+
+def needed_spp(spp: int, se_ln: float, target_ln: float) -> float:
+    """Samples per pixel at which the error would meet the target (error ~ 1/sqrt(spp))."""
+    if not math.isfinite(se_ln):
+        return math.inf
+    return spp * (se_ln / target_ln) ** 2

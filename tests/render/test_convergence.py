@@ -1,0 +1,177 @@
+"""Render to a noise target: the batch error estimator, the stop rule, settings and the cache."""
+
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from gevsim.errors import ConfigError
+from gevsim.render import load, override
+from gevsim.render.basis import quality_request, render_pose, serves
+from gevsim.render.convergence import BatchAccumulator, mixture_weights, needed_spp
+
+
+def test_mixture_weights_are_the_corners_of_the_waveform_ranges():
+    w = mixture_weights([(0.0, 10.0 / 3.0), (1.0, 1.0)])  # PWM duty 0.3 and a DC lamp
+    np.testing.assert_allclose(w, [[0.0, 1.0], [10.0 / 3.0, 1.0]])
+    assert mixture_weights([(0.5, 2.0), (0.0, 3.0), (1.0, 1.0)]).shape == (4, 3)
+    with pytest.raises(ValueError, match="0 <= min <= max"):
+        mixture_weights([(2.0, 1.0)])
+
+
+def synthetic_batch(rng, mu, sigma, spp, shared=False):
+    """K group images (K, H, W, 1): mean mu[k], per-sample std sigma[k], averaged over spp samples."""
+    k = len(mu)
+    shape = (40, 50)
+    eps = rng.standard_normal((1 if shared else k,) + shape)
+    eps = np.broadcast_to(eps, (k,) + shape)
+    img = np.array(mu)[:, None, None] + np.array(sigma)[:, None, None] * eps / np.sqrt(spp)
+    return img[..., None], img
+
+
+@pytest.mark.parametrize("sizes", [[16] * 40, [8, 8, 16, 16, 32, 32] * 6])
+def test_absolute_error_matches_the_known_variance(rng, sizes):
+    """Independent group noise: SE(ln Y(w)) = sqrt(sum w_k^2 s_k^2 / N) / sum w_k mu_k."""
+    mu, sigma = [2.0, 5.0], [3.0, 4.0]
+    mixtures = np.array([[0.0, 1.0], [3.0, 1.0]])
+    acc = BatchAccumulator(mixtures, floor_rel=1e-9, metric="absolute")
+    for n in sizes:
+        images, lum = synthetic_batch(rng, mu, sigma, n)
+        acc.add(images, lum, n)
+    n_total = sum(sizes)
+    expected = max(np.sqrt((w**2 * np.square(sigma)).sum() / n_total) / (w @ mu) for w in mixtures)
+    se = acc.se_ln()
+    assert se.shape == (40, 50)
+    # Each pixel's estimate has B - 1 degrees of freedom: its median is close, its spread ~ 1/sqrt(2(B-1)).
+    assert np.median(se) == pytest.approx(expected, rel=0.05)
+    np.testing.assert_allclose(acc.mean()[..., 0].mean(axis=(1, 2)), mu, rtol=0.01)
+
+
+def test_flicker_metric_ignores_noise_shared_by_every_mixture(rng):
+    """When every group's relative error is the same sample (shared paths, shared texture), the
+    mixture's ln changes with w carry no noise; the absolute error of ln Y does."""
+    mu = [2.0, 5.0]
+    sigma = [0.2 * 2.0, 0.2 * 5.0]
+    mixtures = np.array([[0.0, 1.0], [3.0, 1.0]])
+    flick = BatchAccumulator(mixtures, metric="flicker")
+    absolute = BatchAccumulator(mixtures, metric="absolute")
+    for _ in range(20):
+        images, lum = synthetic_batch(rng, mu, sigma, 16, shared=True)
+        flick.add(images, lum, 16)
+        absolute.add(images, lum, 16)
+    assert np.median(absolute.se_ln()) == pytest.approx(0.2 / np.sqrt(320), rel=0.1)
+    assert flick.se_ln().max() < 1e-6
+
+
+def test_half_difference_has_the_variance_of_the_estimate_error(rng):
+    mu, sigma = [1.0], [2.0]
+    acc = BatchAccumulator(np.array([[1.0]]))
+    for _ in range(32):
+        images, lum = synthetic_batch(rng, mu, sigma, 8)
+        acc.add(images, lum, 8)
+    err = acc.mean() - 1.0
+    assert acc.noise().std() == pytest.approx(2.0 / np.sqrt(256), rel=0.05)
+    assert err.std() == pytest.approx(2.0 / np.sqrt(256), rel=0.05)
+    # The noise sample is independent of the estimate's own error.
+    assert abs(np.corrcoef(acc.noise().ravel(), err.ravel())[0, 1]) < 0.05
+
+
+class FakeScene:
+    """A 'renderer' whose groups have known per-sample noise (for the stop rule)."""
+
+    def __init__(self, sigma=2.0, delay_s=0.0, **render):
+        settings = override(load("office"), width=20, height=10, **render).render
+        self.manifest = SimpleNamespace(render=settings)
+        self.sigma, self.delay_s = sigma, delay_s
+        self.rng = np.random.default_rng(7)
+
+    def sample_count(self, spp):
+        return spp
+
+    def render_groups(self, *, spp, seed):
+        time.sleep(self.delay_s)
+        mu = np.array([1.0, 3.0])[:, None, None, None]
+        noise = self.rng.standard_normal((2, 10, 20, 1)) * self.sigma / np.sqrt(spp)
+        return np.repeat(mu + noise, 3, axis=-1).astype(np.float32)
+
+
+def test_stop_rule_stops_near_the_predicted_sample_count():
+    scene = FakeScene(noise_target_ln=0.02, noise_metric="absolute")
+    mixtures = mixture_weights([(0.0, 2.0), (1.0, 1.0)])
+    request = quality_request(scene.manifest.render, mixtures, 0.02)
+    _, _, se_map, report = render_pose(scene, request)
+    # Worst mixture (2, 1): mean 5, per-sample std 2 * sqrt(5): SE = 4.47 / sqrt(N) / 5 <= 0.02 -> N >= 2000.
+    predicted = (2.0 * np.sqrt(5.0) / 5.0 / 0.02) ** 2
+    assert report.stopped_by == "target" and report.reached
+    assert report.se_ln <= 0.02 and float(np.percentile(se_map, 99)) == pytest.approx(report.se_ln)
+    assert predicted <= report.spp <= 2.5 * predicted
+    assert needed_spp(report.spp, report.se_ln, 0.02) <= report.spp
+
+
+def test_stop_rule_honours_max_spp_and_the_time_budget():
+    scene = FakeScene(noise_target_ln=1e-4, max_spp=256)
+    request = quality_request(scene.manifest.render, mixture_weights([(0.0, 2.0), (1.0, 1.0)]), 1e-4)
+    _, _, _, report = render_pose(scene, request)
+    assert report.stopped_by == "max_spp" and not report.reached and report.spp <= 256
+    slow = FakeScene(noise_target_ln=1e-4, delay_s=0.02)
+    request = quality_request(slow.manifest.render, mixture_weights([(0.0, 2.0), (1.0, 1.0)]), 1e-4)
+    _, _, _, report = render_pose(slow, request, budget_s=0.5)
+    assert report.stopped_by == "time_budget" and report.seconds < 1.0
+
+
+def test_fixed_mode_renders_the_requested_samples():
+    scene = FakeScene(spp=24)
+    request = quality_request(scene.manifest.render, mixture_weights([(0.0, 2.0), (1.0, 1.0)]), None)
+    _, noise, _, report = render_pose(scene, request)
+    assert report.stopped_by == "fixed" and report.spp == 24 and report.batches % 2 == 0
+    assert noise.std() > 0
+
+
+def test_a_better_cached_render_serves_a_lesser_request():
+    mix = mixture_weights([(0.0, 2.0), (1.0, 1.0)])
+    settings = override(load("office"), spp=16).render
+    fixed = quality_request(settings, mix, None)
+    se_map = np.full((4, 4), 0.01)
+    meta = {"spp": 64, "mixtures": mix.tolist(), "floor_rel": settings.noise_floor_rel, "metric": "flicker"}
+    assert serves(meta, se_map, fixed)
+    assert not serves({**meta, "spp": 8}, se_map, fixed)
+    target = quality_request(override(load("office"), noise_target_ln=0.02).render, mix, 0.02)
+    assert serves(meta, se_map, target)
+    assert not serves(meta, np.full((4, 4), 0.03), target)
+    assert not serves({**meta, "metric": "absolute"}, se_map, target)  # measured something else
+    assert serves({**meta, "spp": target["max_spp"]}, np.full((4, 4), 0.03), target)  # no better to be had
+
+
+@pytest.mark.parametrize("key, value, match", [
+    ("noise_target_ln", 0.0, "render.noise_target_ln"),
+    ("noise_target_ln", -1.0, "render.noise_target_ln"),
+    ("max_spp", 0, "render.max_spp"),
+    ("sampler", "sobolx", "render.sampler"),
+    ("noise_percentile", 101.0, "render.noise_percentile"),
+    ("noise_metric", "relative", "render.noise_metric"),
+])
+def test_bad_quality_settings_name_the_key(key, value, match):
+    with pytest.raises(ConfigError, match=match):
+        override(load("office"), **{key: value})
+
+
+def test_bad_quality_settings_in_a_manifest_name_file_and_key(tmp_path):
+    src = load("office").source
+    text = open(src).read().replace("[render]", "[render]\nsampler = \"stratifed\"")
+    (tmp_path / "office.py").write_text(open(src.replace(".toml", ".py")).read())
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=r"bad.toml.*render.sampler.*stratified"):
+        load(path)
+    path.write_text(text.replace('sampler = "stratifed"', "spp = 8\nnoise_target_ln = 0.01").replace(
+        "\nspp = ", "\n# spp = ", 1))
+    with pytest.raises(ConfigError, match="either spp"):
+        load(path)
+
+
+def test_spp_override_switches_to_the_fixed_mode():
+    m = override(load("office"), noise_target_ln=0.01)
+    assert m.render.targeted and "spp" not in m.raw["render"]
+    m = override(m, spp=8)
+    assert not m.render.targeted and m.render.spp == 8 and "noise_target_ln" not in m.raw["render"]
