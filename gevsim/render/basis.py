@@ -33,7 +33,7 @@ from gevsim.optics import luminance
 from gevsim.render.convergence import (MIN_BATCHES, BatchAccumulator, NoiseReport, mixture_weights,
                                        next_batch_spp)
 from gevsim.render.manifest import RenderSettings
-from gevsim.render.scene import MitsubaScene, content_hash
+from gevsim.render.scene import MitsubaScene, content_hash, exact_count
 from gevsim.render.trajectory import Pose
 
 log = logging.getLogger(__name__)
@@ -138,22 +138,21 @@ def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = 
         acc.add(images, luminance(images), scene.sample_count(spp))
 
     if target is None:
-        pairs = max(1, min(MIN_BATCHES // 2, request["spp"] // 2), -(-request["spp"] // (2 * cap)))
-        size = max(1, -(-request["spp"] // (2 * pairs)))
-        for _ in range(2 * pairs):
+        size, count = fixed_batches(request["spp"], r.sampler, cap=cap)
+        for _ in range(count):
             batch(size)
         stopped = "fixed"
     else:
         stopped = None
         while stopped is None:
             size = next_batch_spp(acc.spp, first=FIRST_BATCH_SPP, cap=cap)
-            size = max(1, min(size, (request["max_spp"] - acc.spp) // 2))
+            size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - acc.spp) // 2)))
             for _ in range(2):
                 batch(size)
             elapsed = time.perf_counter() - start
             if acc.batches >= MIN_BATCHES and acc.percentiles(request["percentile"])["at_percentile"] <= target:
                 stopped = "target"
-            elif acc.spp >= request["max_spp"] - 1:
+            elif acc.spp + 2 * exact_count(r.sampler, 1) > request["max_spp"]:
                 stopped = "max_spp"
             elif budget_s is not None and elapsed * (1.0 + 2.0 * size / acc.spp) > budget_s:
                 stopped = "time_budget"
@@ -161,6 +160,23 @@ def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = 
                          percentile=request["percentile"], target_ln=target, stopped_by=stopped,
                          seconds=time.perf_counter() - start)
     return acc.mean(), acc.noise(), acc.se_ln().astype(np.float32), report
+
+
+def fixed_batches(spp: int, sampler: str, *, cap: int) -> tuple[int, int]:
+    """(batch size, even batch count) for a fixed request: at least ``spp`` samples in sizes the
+    sampler takes exactly; at least MIN_BATCHES batches where possible, the fewest samples, then the
+    fewest batches (never more than 4x the fewest possible)."""
+    options, size = [], exact_count(sampler, cap)
+    while True:
+        count = max(2, 2 * -(-spp // (2 * size)))
+        options.append((size, count))
+        smaller = exact_count(sampler, size - 1) if size > 1 else size
+        if smaller >= size:
+            break
+        size = smaller
+    fewest_batches = options[0][1]
+    eligible = [(s, c) for s, c in options if c <= 4 * max(fewest_batches, MIN_BATCHES)]
+    return min(eligible, key=lambda sc: (sc[1] < MIN_BATCHES and sc[0] > 1, sc[0] * sc[1], sc[1]))
 
 
 def summarize_quality(quality: list) -> dict:

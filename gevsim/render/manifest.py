@@ -118,7 +118,7 @@ class RenderSettings:
     noise_percentile: float = 99.0
     max_spp: int = 16384
     time_budget_s: float | None = None
-    sampler: str = "independent"
+    sampler: str = "multijitter"
     noise_floor_rel: float = 1e-3
     noise_metric: str = "flicker"
 

@@ -30,6 +30,25 @@ SPECTRAL_OFF = 1e-9
 _RADIANCE_PREFIXES = ("emitter.radiance.", "radiance.", "intensity.", "irradiance.")
 
 
+def exact_count(sampler: str, spp: int) -> int:
+    """The largest sample count <= ``spp`` that ``sampler`` takes without rounding (at least its minimum).
+
+    Mitsuba's stratified and multijitter samplers take squares, ``ldsampler``
+    squares that are powers of two (powers of 4), ``orthogonal`` squares of primes.
+    """
+    spp = max(1, int(spp))
+    if sampler in ("stratified", "multijitter"):
+        return math.isqrt(spp) ** 2
+    if sampler == "ldsampler":
+        return 4 ** max(1, int(math.log(spp, 4) + 1e-9))
+    if sampler == "orthogonal":
+        root = math.isqrt(spp)
+        while root > 2 and any(root % d == 0 for d in range(2, math.isqrt(root) + 1)):
+            root -= 1
+        return max(2, root) ** 2
+    return spp
+
+
 def load_builder(path: Path):
     """Import a scene builder file and return its ``build`` function."""
     spec = importlib.util.spec_from_file_location(f"gevsim_scene_{path.stem}", path)
@@ -270,20 +289,24 @@ class MitsubaScene:
         return integrator.supported(self.variant.variant)
 
     def sample_count(self, spp: int) -> int:
-        """The samples per pixel the scene's sampler really takes for ``spp`` (some round it)."""
+        """The samples per pixel the scene's sampler takes for ``spp``: ``spp`` itself when it is
+        :func:`exact_count`, else Mitsuba's rounding (with its warning)."""
+        if exact_count(self.manifest.render.sampler, spp) == spp:
+            return int(spp)
         sampler = self.scene.sensors()[0].sampler().clone()
         sampler.set_sample_count(int(spp))
         return int(sampler.sample_count())
 
-    def render_groups(self, *, spp: int, seed: int) -> np.ndarray:
+    def render_groups(self, *, spp: int, seed: int, one_pass: bool | None = None) -> np.ndarray:
         """(K, H, W, C) radiance of every light group at the current pose, from ``spp`` samples.
 
         In JIT variants one set of paths serves all groups
         (:func:`gevsim.render.integrator.render_groups`); in scalar variants
-        each group is rendered alone with Mitsuba's ``path`` and the same seed.
+        each group is rendered alone with Mitsuba's ``path`` and the same seed
+        (``one_pass=False`` forces that, for comparisons).
         """
         names = self.manifest.group_names
-        if self.one_pass:
+        if self.one_pass if one_pass is None else one_pass:
             self.set_groups(None)
             if self._group_emitters is None:
                 self._group_emitters = integrator.group_emitters(self.scene, [self.group(n).emitters for n in names])

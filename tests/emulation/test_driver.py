@@ -230,3 +230,28 @@ def test_summary_rates_in_windows_equal_whole_stream_rates(tmp_path, monkeypatch
         for stream in STREAMS:
             whole = event_rates(r.read(stream), r.t_end_us / 1e6, width=32, height=24)
             assert stats[stream]["rates_hz"] == pytest.approx(whole)
+
+
+def test_render_noise_floor_is_zero_without_render_noise_and_positive_with_it(tmp_path):
+    """The floor run alternates C +- D/sqrt(2); with D = 0 it is the flicker-free scene (same events),
+    with the render's own error sample it adds events; HDF5 attributes record the achieved noise."""
+    import dataclasses
+    import json
+
+    from gevsim.emulation import prepare
+    from gevsim.emulation.driver import render_noise_floor
+
+    cfg = load_config(config(tmp_path, sensor="ideal", emulators=["dvs", "gradient"], frame_rate_hz=0.0))
+    setup = prepare(cfg, cache_dir=tmp_path / "cache")
+    assert setup.current_noise.shape == setup.current_basis.shape and np.abs(setup.current_noise).max() > 0
+    steady = run(cfg, tmp_path / "steady.h5", setup=setup, flicker=False, noise=False)
+    clean = dataclasses.replace(setup, current_noise=np.zeros_like(setup.current_noise))
+    zero = run(cfg, tmp_path / "zero.h5", setup=render_noise_floor(clean, frequency_hz=500.0), noise=False)
+    assert zero["counts"] == steady["counts"]
+    floor = run(cfg, tmp_path / "floor.h5", setup=render_noise_floor(setup, frequency_hz=500.0), noise=False)
+    assert floor["counts"]["gradient_events"] > steady["counts"]["gradient_events"]
+    with EventReader(tmp_path / "floor.h5") as r:
+        noise = json.loads(r.attrs["render_noise_json"])
+    assert noise["spp_min"] >= 4 and noise["se_ln"]["p99"] > 0 and noise["stopped_by"] == ["fixed"]
+    with pytest.raises(ValueError, match="frequency_hz"):
+        render_noise_floor(setup, frequency_hz=0.0)
