@@ -83,13 +83,18 @@ def serves(meta: dict, se_map: np.ndarray | None, request: dict) -> bool:
     A fixed request is met by any render with at least as many samples. A
     noise-target request is met by a render with at least its ``max_spp``, or
     one whose error map (computed for the same lamp mixtures and floor) meets
-    the target at the requested percentile.
+    the target at the requested percentile, or one a time budget stopped when
+    the request's budget is no larger.
     """
     spp = int(meta.get("spp", 0))
     if request["target_ln"] is None:
         return spp >= request["spp"]
     if spp >= request["max_spp"]:
         return True
+    budget = meta.get("time_budget_s")
+    if (meta.get("report", {}).get("stopped_by") == "time_budget" and budget is not None
+            and request["time_budget_s"] is not None and request["time_budget_s"] <= budget):
+        return True  # the same budget would stop at the same place: no better to be had
     mixtures = np.asarray(meta.get("mixtures", []), float)
     if (se_map is None or mixtures.shape != request["mixtures"].shape or meta.get("floor_rel") != request["floor_rel"]
             or meta.get("metric") != request["metric"]):
@@ -103,7 +108,7 @@ def quality_request(settings: RenderSettings, mixtures: np.ndarray, target_ln: f
     """What a render must achieve: fixed ``spp``, or a resolved noise target with its limits."""
     return {"spp": settings.spp, "target_ln": target_ln, "percentile": settings.noise_percentile,
             "max_spp": settings.max_spp, "mixtures": np.asarray(mixtures, float), "floor_rel": settings.noise_floor_rel,
-            "metric": settings.noise_metric}
+            "metric": settings.noise_metric, "time_budget_s": settings.time_budget_s}
 
 
 def resolve_target(settings: RenderSettings, smallest_threshold_ln: float | None = None) -> float | None:
@@ -301,7 +306,7 @@ def render_basis(
             meta = {"groups": list(groups), "t_s": float(t), "scene": m.name, "variant": scene.variant.variant,
                     "gevsim": gevsim.__version__, "spp": report.spp, "report": report.as_dict(),
                     "mixtures": request["mixtures"].tolist(), "floor_rel": request["floor_rel"],
-                    "metric": request["metric"],
+                    "metric": request["metric"], "time_budget_s": request["time_budget_s"],
                     "sampler": r.sampler, "one_pass": scene.one_pass}
             write_exr_layers(path, layers, metadata=meta)
         images.append(mean)

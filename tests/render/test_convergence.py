@@ -176,3 +176,12 @@ def test_spp_override_switches_to_the_fixed_mode():
     assert m.render.targeted and "spp" not in m.raw["render"]
     m = override(m, spp=8)
     assert not m.render.targeted and m.render.spp == 8 and "noise_target_ln" not in m.raw["render"]
+
+
+def test_a_render_stopped_by_its_time_budget_serves_the_same_budget_again():
+    mix = mixture_weights([(0.0, 2.0), (1.0, 1.0)])
+    request = quality_request(override(load("office"), noise_target_ln=0.001, time_budget_s=30.0).render, mix, 0.001)
+    meta = {"spp": 64, "mixtures": mix.tolist(), "floor_rel": 1e-3, "metric": "flicker", "time_budget_s": 30.0,
+            "report": {"stopped_by": "time_budget"}}
+    assert serves(meta, np.full((4, 4), 0.01), request)
+    assert not serves({**meta, "time_budget_s": 10.0}, np.full((4, 4), 0.01), request)
