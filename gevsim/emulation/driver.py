@@ -120,10 +120,10 @@ def render_noise_floor(setup: Setup, *, frequency_hz: float) -> Setup:
     a = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5})
     b = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5, "phase_s": 0.5 * period})
     k = setup.current_basis.shape[1]
-    means = np.array([w.constant()(0.0) for w in setup.waveforms], float).reshape(1, k, 1, 1)
-    # A PWM at duty 0.5 has values 0 and 2 (mean 1), so each half of the basis carries half the weight.
-    half = 0.5 * means * setup.current_basis
-    d = 0.5 * means * setup.current_noise / np.sqrt(2.0)
+    # Every waveform has mean 1, so "lamps at their mean" is the basis itself. A PWM at duty 0.5
+    # has values 0 and 2 (mean 1), so each half of the alternation carries half the basis.
+    half = 0.5 * setup.current_basis
+    d = 0.5 * setup.current_noise / np.sqrt(2.0)
     basis = np.concatenate([half + d, half - d], axis=1)
     return dataclasses.replace(setup, current_basis=basis, waveforms=(a,) * k + (b,) * k, current_noise=None)
 

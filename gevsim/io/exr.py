@@ -13,24 +13,32 @@ from gevsim.io.atomic import atomic_path
 _CHANNELS = {1: ("Y",), 3: ("R", "G", "B")}
 
 
-def write_exr(path: str | os.PathLike, image: np.ndarray, *, metadata: dict | None = None) -> None:
-    """Write an (H, W), (H, W, 1) or (H, W, 3) image as float32 EXR (ZIP), atomically.
-
-    ``metadata`` is stored as a JSON string attribute ``gevsim``.
-    """
+def _channels(image, *, prefix: str, what: str) -> dict:
+    """``{prefix + 'R': plane, ...}`` of an (H, W), (H, W, 1) or (H, W, 3) image, as float32."""
     image = np.asarray(image, dtype=np.float32)
     if image.ndim == 2:
         image = image[..., None]
     if image.ndim != 3 or image.shape[2] not in _CHANNELS:
-        raise ValueError(f"write_exr: expected (H, W), (H, W, 1) or (H, W, 3), got shape {image.shape}")
-    names = _CHANNELS[image.shape[2]]
-    channels = {n: np.ascontiguousarray(image[..., i]) for i, n in enumerate(names)}
+        raise ValueError(f"{what}: expected (H, W), (H, W, 1) or (H, W, 3), got shape {image.shape}")
+    return {prefix + n: np.ascontiguousarray(image[..., i]) for i, n in enumerate(_CHANNELS[image.shape[2]])}
+
+
+def _write(path, channels: dict, metadata: dict | None) -> None:
+    """Write float32 channels as one ZIP-compressed EXR, atomically, with ``metadata`` as JSON."""
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     if metadata:
         header["gevsim"] = json.dumps(metadata, sort_keys=True)
     with atomic_path(path, suffix=".exr") as tmp:
         with OpenEXR.File(header, channels) as f:
             f.write(str(tmp))
+
+
+def write_exr(path: str | os.PathLike, image: np.ndarray, *, metadata: dict | None = None) -> None:
+    """Write an (H, W), (H, W, 1) or (H, W, 3) image as float32 EXR (ZIP), atomically.
+
+    ``metadata`` is stored as a JSON string attribute ``gevsim``.
+    """
+    _write(path, _channels(image, prefix="", what="write_exr"), metadata)
 
 
 def read_exr(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
@@ -51,20 +59,8 @@ def write_exr_layers(path: str | os.PathLike, layers: dict, *, metadata: dict | 
     """
     channels = {}
     for name, image in layers.items():
-        image = np.asarray(image, dtype=np.float32)
-        if image.ndim == 2:
-            image = image[..., None]
-        if image.ndim != 3 or image.shape[2] not in _CHANNELS:
-            raise ValueError(f"write_exr_layers: layer {name!r} must be (H, W), (H, W, 1) or (H, W, 3), "
-                             f"got shape {image.shape}")
-        for i, c in enumerate(_CHANNELS[image.shape[2]]):
-            channels[f"{name}.{c}"] = np.ascontiguousarray(image[..., i])
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    if metadata:
-        header["gevsim"] = json.dumps(metadata, sort_keys=True)
-    with atomic_path(path, suffix=".exr") as tmp:
-        with OpenEXR.File(header, channels) as f:
-            f.write(str(tmp))
+        channels.update(_channels(image, prefix=f"{name}.", what=f"write_exr_layers: layer {name!r}"))
+    _write(path, channels, metadata)
 
 
 def read_exr_layers(path: str | os.PathLike) -> tuple[dict, dict]:

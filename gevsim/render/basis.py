@@ -128,8 +128,9 @@ def batch_seed(seed: int, batch: int) -> int:
 def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = None):
     """Render the current pose's K group images in batches until the request is met.
 
-    Returns ``(images, noise, report)``: (K, H, W, C) mean and noise sample
-    (:meth:`BatchAccumulator.noise`) and a :class:`NoiseReport`. A fixed
+    Returns ``(images, noise, se_map, report)``: (K, H, W, C) mean and noise
+    sample (:meth:`BatchAccumulator.noise`), the (H, W) error map
+    (:meth:`BatchAccumulator.se_ln`) and a :class:`NoiseReport`. A fixed
     request renders ``spp`` in an even number of equal batches (rounded up).
     """
     r = scene.manifest.render
@@ -155,16 +156,18 @@ def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = 
             for _ in range(2):
                 batch(size)
             elapsed = time.perf_counter() - start
-            if acc.batches >= MIN_BATCHES and acc.percentiles(request["percentile"])["at_percentile"] <= target:
+            if acc.batches >= MIN_BATCHES and np.percentile(acc.se_ln(), request["percentile"]) <= target:
                 stopped = "target"
             elif acc.spp + 2 * exact_count(r.sampler, 1) > request["max_spp"]:
                 stopped = "max_spp"
             elif budget_s is not None and elapsed * (1.0 + 2.0 * size / acc.spp) > budget_s:
                 stopped = "time_budget"
-    report = NoiseReport(spp=acc.spp, batches=acc.batches, se_ln_percentiles=acc.percentiles(request["percentile"]),
+    se_map = acc.se_ln()
+    report = NoiseReport(spp=acc.spp, batches=acc.batches,
+                         se_ln_percentiles=acc.percentiles(request["percentile"], se=se_map),
                          percentile=request["percentile"], target_ln=target, stopped_by=stopped,
                          seconds=time.perf_counter() - start)
-    return acc.mean(), acc.noise(), acc.se_ln().astype(np.float32), report
+    return acc.mean(), acc.noise(), se_map.astype(np.float32), report
 
 
 def fixed_batches(spp: int, sampler: str, *, cap: int) -> tuple[int, int]:

@@ -209,8 +209,9 @@ class BatchAccumulator:
             rel_var = var / scale**2 + var[-1] / scale[-1] ** 2 - 2.0 * cov / (scale * scale[-1])
         return np.sqrt(np.maximum(rel_var, 0.0) / n).max(axis=0)
 
-    def percentiles(self, percentile: float) -> dict:
-        se = self.se_ln()
+    def percentiles(self, percentile: float, *, se: np.ndarray | None = None) -> dict:
+        """Percentiles of the error map ``se`` (default: :meth:`se_ln`), and the other metric's at ``percentile``."""
+        se = self.se_ln() if se is None else se
         other = "absolute" if self.metric == "flicker" else "flicker"
         return {"p50": float(np.percentile(se, 50)), "p90": float(np.percentile(se, 90)),
                 "p99": float(np.percentile(se, 99)), "max": float(se.max()),

@@ -355,18 +355,13 @@ def quality_settings(table: dict, r: TomlReader, where: str) -> dict:
         out["time_budget_s"] = float(r.number(table, "time_budget_s", where, positive=True))
     if "noise_floor_rel" in table:
         out["noise_floor_rel"] = float(r.number(table, "noise_floor_rel", where, positive=True))
-    if "noise_metric" in table:
-        metric = table["noise_metric"]
-        if metric not in NOISE_METRICS:
-            r.fail(f"{where}.noise_metric", f"unknown noise metric {metric!r}{suggest(str(metric), NOISE_METRICS)}; "
-                                            f"one of {', '.join(NOISE_METRICS)}")
-        out["noise_metric"] = metric
-    if "sampler" in table:
-        sampler = table["sampler"]
-        if sampler not in SAMPLERS:
-            r.fail(f"{where}.sampler", f"unknown sampler {sampler!r}{suggest(str(sampler), SAMPLERS)}; "
-                                       f"one of {', '.join(SAMPLERS)}")
-        out["sampler"] = sampler
+    for key, what, options in (("noise_metric", "noise metric", NOISE_METRICS), ("sampler", "sampler", SAMPLERS)):
+        if key in table:
+            value = table[key]
+            if value not in options:
+                r.fail(f"{where}.{key}", f"unknown {what} {value!r}{suggest(str(value), options)}; "
+                                         f"one of {', '.join(options)}")
+            out[key] = value
     return out
 
 
