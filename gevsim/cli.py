@@ -59,7 +59,7 @@ def cmd_render(args) -> int:
     manifest = load(args.scene)
     manifest = override(manifest, width=args.width, height=args.height, spp=args.spp, seed=args.seed,
                         noise_target_ln=args.noise_target, max_spp=args.max_spp, time_budget_s=args.time_budget,
-                        duration_s=args.duration, source="command line")
+                        denoise=args.denoise, duration_s=args.duration, source="command line")
     if args.frames is not None and args.frames <= 0:
         raise ConfigError(f"must be > 0, got {args.frames}", key="--frames")
     if args.plots and args.frames is None:
@@ -264,6 +264,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--max-spp", type=int, dest="max_spp", help="noise-target mode: stop at this many samples")
     r.add_argument("--time-budget", type=float, metavar="S", dest="time_budget",
                    help="noise-target mode: stop after about S seconds of rendering")
+    r.add_argument("--denoise", action=argparse.BooleanOptionalAction, default=None,
+                   help="denoise the group images with Intel Open Image Denoise (biased; see benchmarks/README.md)")
     r.add_argument("--seed", type=int)
     r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -27,11 +27,12 @@ from pathlib import Path
 import numpy as np
 
 import gevsim
+from gevsim.errors import ConfigError
 from gevsim.illumination import Waveform, weights_at
 from gevsim.io import read_exr_layers, write_exr_layers
 from gevsim.optics import luminance
 from gevsim.render.convergence import (MIN_BATCHES, BatchAccumulator, NoiseReport, mixture_weights,
-                                       next_batch_spp)
+                                       next_batch_spp, sample_se_ln)
 from gevsim.render.manifest import RenderSettings
 from gevsim.render.scene import MitsubaScene, content_hash, exact_count
 from gevsim.render.trajectory import Pose
@@ -48,6 +49,9 @@ FIRST_BATCH_SPP = 4
 AUTO_TARGET_FRACTION = 0.1
 #: ... which, when rendering without a sensor, is this (ln units; a typical gradient threshold).
 DEFAULT_THRESHOLD_LN = 0.05
+#: Samples per pixel of the denoiser's albedo and normal guides, and the batch index of their seed.
+AUX_SPP = 64
+AUX_BATCH = 2**20
 
 
 def default_cache_dir() -> Path:
@@ -74,6 +78,8 @@ def cache_key(scene: MitsubaScene, pose: Pose) -> str:
         "one_pass": scene.one_pass,
         "version": CACHE_VERSION,
     }
+    if r.denoise:  # a denoised render is another estimator: never mixed with raw ones
+        payload["denoise"] = "oidn-1.4.3"
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:32]
 
 
@@ -108,7 +114,8 @@ def quality_request(settings: RenderSettings, mixtures: np.ndarray, target_ln: f
     """What a render must achieve: fixed ``spp``, or a resolved noise target with its limits."""
     return {"spp": settings.spp, "target_ln": target_ln, "percentile": settings.noise_percentile,
             "max_spp": settings.max_spp, "mixtures": np.asarray(mixtures, float), "floor_rel": settings.noise_floor_rel,
-            "metric": settings.noise_metric, "time_budget_s": settings.time_budget_s}
+            "metric": settings.noise_metric, "time_budget_s": settings.time_budget_s,
+            "denoise": settings.denoise}
 
 
 def resolve_target(settings: RenderSettings, smallest_threshold_ln: float | None = None) -> float | None:
@@ -163,11 +170,34 @@ def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = 
             elif budget_s is not None and elapsed * (1.0 + 2.0 * size / acc.spp) > budget_s:
                 stopped = "time_budget"
     se_map = acc.se_ln()
+    mean, noise, denoised = acc.mean(), acc.noise(), None
+    if request.get("denoise"):
+        mean, noise, denoised = denoise_pose(scene, acc, request)
     report = NoiseReport(spp=acc.spp, batches=acc.batches,
                          se_ln_percentiles=acc.percentiles(request["percentile"], se=se_map),
                          percentile=request["percentile"], target_ln=target, stopped_by=stopped,
-                         seconds=time.perf_counter() - start)
-    return acc.mean(), acc.noise(), se_map.astype(np.float32), report
+                         seconds=time.perf_counter() - start, denoised_se_ln=denoised)
+    return mean, noise, se_map.astype(np.float32), report
+
+
+def denoise_pose(scene: MitsubaScene, acc: BatchAccumulator, request: dict):
+    """OIDN-denoised group images of a finished render: ``(mean, noise, error percentiles)``.
+
+    The guides (albedo, normal) are rendered with AUX_SPP samples; the noise
+    sample is half the difference of the denoised halves, and its error map
+    (:func:`~gevsim.render.convergence.sample_se_ln`) gives the percentiles.
+    The stop rule stays on the raw estimate, so the target is met before denoising.
+    """
+    from gevsim.render.denoise import denoise_groups
+
+    albedo, normal = scene.render_aux(spp=AUX_SPP, seed=batch_seed(scene.manifest.render.seed, AUX_BATCH))
+    mean, noise = denoise_groups(acc.mean(), acc.halves(), albedo, normal)
+    se = sample_se_ln(acc.mixtures[:-1], luminance(mean), luminance(noise), floor_rel=acc.floor_rel,
+                      metric=acc.metric)
+    p = request["percentile"]
+    return mean, noise, {"p50": float(np.percentile(se, 50)), "p90": float(np.percentile(se, 90)),
+                         "p99": float(np.percentile(se, 99)), "max": float(se.max()),
+                         "at_percentile": float(np.percentile(se, p))}
 
 
 def fixed_batches(spp: int, sampler: str, *, cap: int) -> tuple[int, int]:
@@ -195,7 +225,10 @@ def summarize_quality(quality: list) -> dict:
     return {"spp_min": min(q["spp"] for q in quality), "spp_max": max(q["spp"] for q in quality),
             "se_ln": se, "percentile": quality[0]["percentile"], "target_ln": quality[0]["target_ln"],
             "reached": all(q["target_ln"] is None or q["se_ln"]["at_percentile"] <= q["target_ln"] for q in quality),
-            "stopped_by": sorted({q["stopped_by"] for q in quality}), "denoised": False,
+            "stopped_by": sorted({q["stopped_by"] for q in quality}),
+            "denoised": any(q.get("denoised", False) for q in quality),
+            "denoised_se_ln": ({k: max(q["denoised_se_ln"][k] for q in quality) for k in quality[0]["denoised_se_ln"]}
+                               if quality[0].get("denoised_se_ln") else None),
             "render_s": float(sum(q["seconds"] for q in quality))}
 
 
@@ -284,6 +317,13 @@ def render_basis(
     waveforms = tuple(scene.group(g).waveform for g in groups)
     mixtures = mixture_weights([w.value_range() for w in waveforms])
     request = quality_request(r, mixtures, resolve_target(r, smallest_threshold_ln))
+    if r.denoise:
+        from gevsim.render.denoise import available
+
+        why = available()
+        if why is not None:
+            raise ConfigError(f"denoise = true, but the denoiser cannot be used: {why}", source=m.source,
+                              key="render.denoise")
     images, noise, keys, quality = [], [], [], []
     seconds = np.zeros(len(times))
     started = time.perf_counter()
@@ -310,7 +350,7 @@ def render_basis(
                     "gevsim": gevsim.__version__, "spp": report.spp, "report": report.as_dict(),
                     "mixtures": request["mixtures"].tolist(), "floor_rel": request["floor_rel"],
                     "metric": request["metric"], "time_budget_s": request["time_budget_s"],
-                    "sampler": r.sampler, "one_pass": scene.one_pass}
+                    "sampler": r.sampler, "one_pass": scene.one_pass, "denoised": bool(r.denoise)}
             write_exr_layers(path, layers, metadata=meta)
         images.append(mean)
         noise.append(err)

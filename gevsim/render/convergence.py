@@ -93,6 +93,7 @@ class NoiseReport:
     target_ln: float | None
     stopped_by: str  # "target", "max_spp", "time_budget", "fixed"
     seconds: float
+    denoised_se_ln: dict | None = None  # percentiles of the denoised images' error (sample_se_ln), if denoised
 
     @property
     def se_ln(self) -> float:
@@ -106,7 +107,8 @@ class NoiseReport:
     def as_dict(self) -> dict:
         return {"spp": self.spp, "batches": self.batches, "percentile": self.percentile,
                 "target_ln": self.target_ln, "stopped_by": self.stopped_by, "seconds": self.seconds,
-                "se_ln": {k: float(v) for k, v in self.se_ln_percentiles.items()}}
+                "se_ln": {k: float(v) for k, v in self.se_ln_percentiles.items()},
+                "denoised": self.denoised_se_ln is not None, "denoised_se_ln": self.denoised_se_ln}
 
 
 #: What the stop rule measures: the error of ln Y(w) itself ("absolute"), or of its change
@@ -189,7 +191,12 @@ class BatchAccumulator:
         n0, n1 = self._half_spp
         if n0 == 0 or n1 == 0:
             return np.zeros_like(self.mean())
-        return (0.5 * (self._halves[0] / n0 - self._halves[1] / n1)).astype(np.float32)
+        h0, h1 = self.halves()
+        return 0.5 * (h0 - h1)
+
+    def halves(self) -> tuple[np.ndarray, np.ndarray]:
+        """The two halves' means, (K, H, W, C) float32 each: independent estimates."""
+        return tuple((h / max(n, 1)).astype(np.float32) for h, n in zip(self._halves, self._half_spp))
 
     def se_ln(self, metric: str | None = None) -> np.ndarray:
         """(H, W): the largest standard error over the mixtures, of ``metric`` (default: the
@@ -217,6 +224,33 @@ class BatchAccumulator:
                 "p99": float(np.percentile(se, 99)), "max": float(se.max()),
                 "at_percentile": float(np.percentile(se, percentile)),
                 f"{other}_at_percentile": float(np.percentile(self.se_ln(other), percentile))}
+
+
+def sample_se_ln(mixtures: np.ndarray, luminance: np.ndarray, error: np.ndarray, *, floor_rel: float,
+                 metric: str = "flicker", window: int = 7) -> np.ndarray:
+    """(H, W) ln standard error, largest over mixtures, from one error *sample* per pixel.
+
+    For estimators whose batches are not independent and identically
+    distributed (a denoised image), the batch statistics of
+    :class:`BatchAccumulator` do not apply; what is left is an error sample
+    ``error`` (K, H, W) of the group luminances ``luminance`` (K, H, W), e.g.
+    half the difference of two independent halves. Its ln error per mixture
+    (relative to ``Y + floor_rel * mean Y``; for ``"flicker"`` minus that of
+    the all-ones reference mixture) is squared and averaged over a
+    ``window`` x ``window`` box, a local estimate of the variance.
+    """
+    from scipy.ndimage import uniform_filter
+
+    mixtures = np.vstack([np.asarray(mixtures, float), np.ones(np.shape(mixtures)[1])])
+    y = np.tensordot(mixtures, np.asarray(luminance, float), axes=1)
+    d = np.tensordot(mixtures, np.asarray(error, float), axes=1)
+    scale = np.abs(y) + floor_rel * y.reshape(len(y), -1).mean(axis=1)[:, None, None]
+    rel = d / scale
+    if metric == "flicker":
+        rel = rel - rel[-1]
+    var = uniform_filter(rel[:-1] ** 2, size=(1, window, window), mode="nearest") if metric == "flicker" else \
+        uniform_filter(rel ** 2, size=(1, window, window), mode="nearest")
+    return np.sqrt(var).max(axis=0)
 
 
 def next_batch_spp(total_spp: int, *, first: int, cap: int) -> int:

@@ -25,7 +25,7 @@ from gevsim.illumination import Waveform, from_spec as waveform_from_spec
 TABLES = ("scene", "render", "sequence", "camera", "motion", "light_groups", "optics")
 SCENE_KEYS = ("name", "description", "builder", "options", "extends")
 QUALITY_KEYS = ("noise_target_ln", "noise_percentile", "max_spp", "time_budget_s", "sampler", "noise_floor_rel",
-                "noise_metric")
+                "noise_metric", "denoise")
 NOISE_METRICS = ("flicker", "absolute")  # see gevsim.render.convergence
 RENDER_KEYS = ("width", "height", "spp", "seed", "flavour", "max_depth", "max_px_per_pose") + QUALITY_KEYS
 #: ``[render]`` keys that emulation, study and dataset configs may override.
@@ -104,7 +104,9 @@ class RenderSettings:
     dominating: the error is taken relative to (value + noise_floor_rel x the
     mixture's mean). ``noise_metric`` chooses the error measured: of the change
     of ln luminance between lamp mixtures (``"flicker"``, default) or of ln
-    luminance itself (``"absolute"``).
+    luminance itself (``"absolute"``). ``denoise = true`` passes the finished
+    group images through Intel Open Image Denoise (:mod:`gevsim.render.denoise`):
+    biased, off by default; its bias is measured in ``benchmarks/README.md``.
     """
 
     width: int = 346
@@ -121,6 +123,7 @@ class RenderSettings:
     sampler: str = "multijitter"
     noise_floor_rel: float = 1e-3
     noise_metric: str = "flicker"
+    denoise: bool = False
 
     @property
     def targeted(self) -> bool:
@@ -355,6 +358,10 @@ def quality_settings(table: dict, r: TomlReader, where: str) -> dict:
         out["time_budget_s"] = float(r.number(table, "time_budget_s", where, positive=True))
     if "noise_floor_rel" in table:
         out["noise_floor_rel"] = float(r.number(table, "noise_floor_rel", where, positive=True))
+    if "denoise" in table:
+        if not isinstance(table["denoise"], bool):
+            r.fail(f"{where}.denoise", f"expected true or false, got {table['denoise']!r}")
+        out["denoise"] = table["denoise"]
     for key, what, options in (("noise_metric", "noise metric", NOISE_METRICS), ("sampler", "sampler", SAMPLERS)):
         if key in table:
             value = table[key]
@@ -427,7 +434,7 @@ def override(manifest: SceneManifest, *, source: str | None = None, **changes) -
     for key, value in changes.items():
         if key not in RENDER_KEYS:
             raise ConfigError(f"cannot override {key!r}{suggest(key, RENDER_KEYS)}", source=source, key=key)
-        if isinstance(value, (int, float)) and key != "seed" and value <= 0:
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and key != "seed" and value <= 0:
             raise ConfigError(f"must be > 0, got {value!r}", source=source, key=f"render.{key}")
     changes.update(quality_settings(changes, TomlReader(source or "overrides"), "render"))
     render = raw.setdefault("render", {})

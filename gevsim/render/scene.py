@@ -319,6 +319,14 @@ class MitsubaScene:
         self.set_groups(None)
         return np.stack(images)
 
+    def render_aux(self, *, spp: int = 64, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """First-hit albedo and shading normal at the current pose, float32 (H, W, 3) each
+        (albedo (H, W, 1) in mono variants): the denoiser's guides (Mitsuba's ``aov`` integrator)."""
+        if getattr(self, "_aov", None) is None:
+            self._aov = self._mi.load_dict({"type": "aov", "aovs": "albedo:albedo,nn:sh_normal"})
+        img = np.array(self._mi.render(self.scene, spp=spp, seed=seed, integrator=self._aov), dtype=np.float32)
+        return np.ascontiguousarray(img[..., :-3][..., -3:]), np.ascontiguousarray(img[..., -3:])
+
     def render(self, *, spp: int | None = None, seed: int | None = None) -> np.ndarray:
         """Render the current pose and groups: float32 (H, W, C) radiance."""
         r = self.manifest.render
