@@ -1,0 +1,151 @@
+"""Regression pins: bit-identical outputs for a fixed seed.
+
+Frame-mode events (the DVS and gradient emulators on a synthetic frame
+sequence), the frame-mode HDF5 file, reconstructions of it, and a driver run
+on a fixed synthetic photocurrent (no rendering) are hashed with SHA-256. The
+hashes were computed once on the code before the refactors of issue 10 and
+are hard-coded: a change of any of them means the numbers changed, not just
+the code's shape. Rendered runs are not pinned (the renderer changes them).
+
+If a deliberate change of the physics moves a pin, recompute it with
+``python tests/test_pinned_outputs.py`` and say so in the commit message.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import types
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from gevsim.cli import main
+from gevsim.emulation import EmulationConfig, run
+from gevsim.emulation.driver import Setup
+from gevsim.events.frames import emulate_frames
+from gevsim.illumination import from_spec
+from gevsim.pixel import load_preset
+from gevsim.reconstruct.runner import reconstruct_file
+from gevsim.render import load
+
+DATA = Path(__file__).parent / "data"
+iio = pytest.importorskip("imageio.v3")
+
+PINS = {
+    "frames.events": "4b855b10cd4bd3765460ff8bfe31582507926240a3acec7006cbf59b86f4017a",
+    "frames.gradient_events": "b62ad3f9f2ce3af26f88d6365c9ee94c4831c7c5b64a423e1f7a15675f326067",
+    "frames.gradient_rc_events": "9ee493331eb7736018f23593f8142c5b330d9f77f368c93eaa14f963d62ba5fd",
+    "frames.h5": "c8add6b11995dcb35b986afc8cdcc69319cc1fedbdd49772acb24923dbabaf84",
+    "reconstruct.dct": "ee9f0e4d5c2d8a6da349c7fd05dbea50b35e9707efbd66ad9d5926032ee04852",
+    "reconstruct.sor": "1c4ceb46ba2f7c23359375e9b3c131e1d24ed917048c42f9707dd549ae6399b5",
+    "reconstruct.dct_rc": "b8226e9243536e27f2ca25725e4ed3693885221864b76de331efd24bc90d8e3b",
+    "reconstruct.sor_rc": "1ade5de9059d1a68bd34b6d8ca3a5cf9deb9f901e6e12016f2b629d67f5e7438",
+    "reconstruct.direct": "9b9954e4f8dd922df266cd31a1316ae6e9d7f6f0afb7214b8ecdfa36ebff9e51",
+    "reconstruct.high_pass": "4b8cc66aac24c4f19ab82f6346fe9fe554fd8b4e44fce055fc854e2c85a21196",
+    "driver.h5": "930f849a83470af6042bc8ed6ab6d75b1e9f6f31af38268a841a4aeae4b64f5d",
+}
+
+
+def digest(*arrays: np.ndarray) -> str:
+    h = hashlib.sha256()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+#: Attributes that name the machine's paths or the gevsim version: left out of the hash.
+VOLATILE_ATTRS = {"gevsim_version", "config_toml", "source"}
+
+
+def h5_digest(path: Path) -> str:
+    """Hash of every group and dataset in name order: its attributes (but VOLATILE_ATTRS) and
+    each dataset's dtype, shape and bytes."""
+    h = hashlib.sha256()
+    with h5py.File(path, "r") as f:
+        names = [""]
+        f.visit(names.append)
+        for name in sorted(names):
+            obj = f[name] if name else f
+            h.update(name.encode())
+            for key in sorted(set(obj.attrs) - VOLATILE_ATTRS):
+                h.update(f"{key}={np.asarray(obj.attrs[key]).tolist()!r}".encode())
+            if isinstance(obj, h5py.Dataset):
+                h.update(digest(obj[()]).encode())
+    return h.hexdigest()
+
+
+def synthetic_frames() -> tuple[np.ndarray, np.ndarray]:
+    """Eight 24x32 8-bit-exact frames: a smooth background, a moving bright bar and a global dimming."""
+    y, x = np.mgrid[0:24, 0:32]
+    frames = []
+    for k in range(8):
+        img = 0.25 + 0.2 * np.sin(x / 5.0) * np.cos(y / 7.0)
+        img = img + 0.4 * (np.abs(x - 6 - 3 * k) < 3)
+        img = img * (1.0 - 0.04 * k)
+        frames.append(np.rint(np.clip(img, 0, 1) * 255) / 255)
+    return np.asarray(frames, np.float64), np.arange(8) / 30.0
+
+
+def synthetic_setup() -> tuple[EmulationConfig, Setup]:
+    """A driver setup on a fixed photocurrent basis: two poses, two light groups (one PWM, one
+    sinusoid), 32x24 pixels, the davis346 sensor; no rendering."""
+    manifest = load(DATA / "card.toml")
+    h, w = manifest.render.height, manifest.render.width
+    y, x = np.mgrid[0:h, 0:w]
+    g0 = 2e-11 * (1.0 + 0.8 * (x > w // 2)) * (1.0 + 0.3 * np.sin(y / 3.0))
+    g1 = 1e-11 * (1.0 + 0.5 * np.cos(x / 4.0 + y / 6.0))
+    basis = np.stack([np.stack([g0, g1]), np.stack([np.roll(g0, 2, axis=1), g1 * 1.1])])
+    waveforms = (from_spec({"type": "pwm", "frequency_hz": 500.0, "duty": 0.4}),
+                 from_spec({"type": "sinusoid", "frequency_hz": 300.0, "modulation": 0.6}))
+    config = EmulationConfig(scene=str(DATA / "card.toml"), sensor="davis346", seed=7, duration_s=0.004,
+                             step_s=2e-5, chunk_steps=37, frame_rate_hz=1000.0, aps=True, aps_exposure_s=5e-4)
+    setup = Setup(manifest=manifest, preset=load_preset("davis346"), basis_times_s=np.array([0.0, 0.004]),
+                  current_basis=basis.astype(np.float64), waveforms=waveforms, duration_s=0.004,
+                  variant=types.SimpleNamespace(variant="none"), current_noise=None, render_quality={})
+    return config, setup
+
+
+def compute(tmp: Path) -> dict[str, str]:
+    out = {}
+    frames, t_s = synthetic_frames()
+    streams = emulate_frames(frames, t_s, rng=np.random.default_rng(11))
+    for name, events in streams.items():
+        out[f"frames.{name}"] = digest(events)
+    folder = tmp / "frames"
+    folder.mkdir()
+    for k, img in enumerate(frames):
+        iio.imwrite(folder / f"f{k:02d}.png", np.rint(img * 255).astype(np.uint8))
+    h5 = tmp / "frames.h5"
+    assert main(["emulate", "--frames", str(folder), "--fps", "30", "--seed", "11", "--out", str(h5)]) == 0
+    out["frames.h5"] = h5_digest(h5)
+    for method in ("dct", "sor", "dct_rc", "sor_rc", "direct", "high_pass"):
+        base, rc = (method[:-3], True) if method.endswith("_rc") else (method, False)
+        rec, gt, _ = reconstruct_file(h5, base, rc=rc)
+        out[f"reconstruct.{method}"] = digest(rec.frames, np.array([[m["mse"], m["ssim"], m["psnr"]]
+                                                                    for m in rec.metrics]))
+    config, setup = synthetic_setup()
+    run(config, tmp / "driver.h5", setup=setup)
+    out["driver.h5"] = h5_digest(tmp / "driver.h5")
+    return out
+
+
+@pytest.fixture(scope="module")
+def hashes(tmp_path_factory) -> dict[str, str]:
+    return compute(tmp_path_factory.mktemp("pins"))
+
+
+@pytest.mark.parametrize("name", sorted(PINS))
+def test_output_is_bit_identical(hashes, name):
+    assert hashes[name] == PINS[name], f"{name} changed"
+
+
+if __name__ == "__main__":  # print the pins (after a deliberate change)
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        for key, value in compute(Path(d)).items():
+            print(f'    "{key}": "{value}",')
