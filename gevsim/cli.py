@@ -133,48 +133,29 @@ def cmd_emulate(args) -> int:
 
 
 def _emulate_frames(args) -> int:
-    import numpy as np
-
-    from gevsim.emulation.config import STREAMS
-    from gevsim.events import PAPER_THRESHOLDS, GradientEmulator
-    from gevsim.events import frames as frame_mode
-    from gevsim.io import EventWriter
+    from gevsim.emulation import run_frames
+    from gevsim.io import frames as loaders
 
     if args.evreal is not None:
-        frames, t_s = frame_mode.load_evreal_frames(args.evreal)
+        frames, t_s = loaders.load_evreal_frames(args.evreal)
         source = args.evreal
     elif args.video is not None:
-        frames, t_s = frame_mode.load_video(args.video, fps=args.fps)
+        frames, t_s = loaders.load_video(args.video, fps=args.fps)
         source = args.video
     else:
-        frames, t_s = frame_mode.load_frame_folder(args.frames, fps=args.fps)
+        frames, t_s = loaders.load_frame_folder(args.frames, fps=args.fps)
         source = args.frames
-    streams = frame_mode.emulate_frames(frames, t_s, rng=np.random.default_rng(args.seed))
-    h, w = frames.shape[1:]
-    config = f'# frame mode\nsource = "{source}"\nseed = {args.seed}\n'
-    with EventWriter(args.out, width=w, height=h, config_toml=config, seed=args.seed,
-                     extra_attrs={"mode": "frames", "source": str(source)}) as wr:
-        for k, t in enumerate(t_s):
-            wr.append_frame("intensity", frames[k].astype(np.float32), int(round(t * 1e6)))
-        for name, events in streams.items():
-            wr.append(name, events)
-        for name, rc in (("gradient", False), ("gradient_rc", True)):
-            if STREAMS[name] in streams:  # what decoding and reconstruction start from
-                em = GradientEmulator((h, w), thresholds=PAPER_THRESHOLDS, rc=rc, interpolate=False)
-                wr.write_array(f"/thresholds/{name}", em.theta.astype(np.float32))
-                wr.write_array(f"/initial_state/{name}", em.ternary_of(frames[0]))
-        wr.close(t_end_us=int(round(t_s[-1] * 1e6)))
-    duration = float(t_s[-1] - t_s[0])
+    summary = run_frames(frames, t_s, args.out, seed=args.seed, source=source)
     print(f"{'stream':22s} {'events':>10s} {'events/s':>12s}")
-    for name, events in streams.items():
-        print(f"{name:22s} {len(events):10d} {len(events) / duration:12.4g}")
-    print(f"gevsim: {len(frames)} frames {w}x{h} from {source}; wrote {args.out}", file=sys.stderr)
+    for name, count in summary["counts"].items():
+        print(f"{name:22s} {count:10d} {count / summary['duration_s']:12.4g}")
+    print(f"gevsim: {summary['frames']} frames {summary['width']}x{summary['height']} from {source}; "
+          f"wrote {args.out}", file=sys.stderr)
     return 0
 
 
 def cmd_reconstruct(args) -> int:
-    from gevsim.reconstruct.output import write_reconstructions
-    from gevsim.reconstruct.runner import reconstruct_file
+    from gevsim.evaluation import reconstruct_file, write_reconstructions
 
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
     results, gt, tone = [], None, None

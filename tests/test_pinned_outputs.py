@@ -24,10 +24,10 @@ import pytest
 from gevsim.cli import main
 from gevsim.emulation import EmulationConfig, run
 from gevsim.emulation.driver import Setup
-from gevsim.events.frames import emulate_frames
+from gevsim.emulation import emulate_frames
 from gevsim.illumination import from_spec
 from gevsim.pixel import load_preset
-from gevsim.reconstruct.runner import reconstruct_file
+from gevsim.evaluation import reconstruct_file
 from gevsim.render import load
 
 DATA = Path(__file__).parent / "data"

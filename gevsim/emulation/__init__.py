@@ -1,6 +1,9 @@
-"""The emulation driver: scene to events, streamed to HDF5 in time chunks."""
+"""Emulation: a scene to events, streamed to HDF5 in time chunks (the driver), or a frame
+sequence to events (frame mode)."""
 
 from gevsim.emulation.config import EMULATORS, STREAMS, EmulationConfig, load_config
 from gevsim.emulation.driver import prepare, run
+from gevsim.emulation.frames import emulate_frames, run_frames
 
-__all__ = ["EMULATORS", "STREAMS", "EmulationConfig", "load_config", "prepare", "run"]
+__all__ = ["EMULATORS", "STREAMS", "EmulationConfig", "emulate_frames", "load_config", "prepare", "run",
+           "run_frames"]

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.constants import elementary_charge
 
+from gevsim.emulation import layout
 from gevsim.emulation.config import STREAMS, EmulationConfig, check_consistency
 from gevsim.events import BrightnessEmulator, CenterSurroundEmulator, GradientEmulator
 from gevsim.errors import ConfigError, suggest
@@ -28,7 +29,7 @@ from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spec
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
 from gevsim.pixel.presets import with_overrides
 from gevsim.render import MitsubaScene, load, override, render_basis
-from gevsim.render.output import resolved_config, scene_optics
+from gevsim.render.scene_config import resolved_config, scene_optics
 
 log = logging.getLogger(__name__)
 DEFAULT_SPECTRUM = "D65"  # for light groups given as RGB radiance without a lamp spectrum
@@ -196,9 +197,10 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
                      extra_attrs=extra) as wr:
         for name in ("gradient", "gradient_rc"):
             if name in emulators:
-                wr.write_array(f"/thresholds/{name}", emulators[name].theta.astype(np.float32))
+                layout.write_thresholds(wr, name, emulators[name].theta.astype(np.float32))
         if "dvs" in emulators:  # nominal ON/OFF contrast steps, for brightness-event reconstruction
-            wr.write_array("/thresholds/dvs", np.array([preset.events.threshold_on_ln, preset.events.threshold_off_ln]))
+            layout.write_thresholds(wr, "dvs", np.array([preset.events.threshold_on_ln,
+                                                         preset.events.threshold_off_ln]))
         if config.frame_rate_hz > 0:
             _write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
         chunks = range(0, n_steps, config.chunk_steps)
@@ -215,7 +217,7 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
                 events = em.process(v, t_end)
                 event_s[name] += time.perf_counter() - tick
                 if c == 0 and hasattr(em, "initial_state"):  # decoding starts from it
-                    wr.write_array(f"/initial_state/{name}", em.initial_state)
+                    layout.write_initial_state(wr, name, em.initial_state)
                 wr.append(STREAMS[name], events)
                 counts[STREAMS[name]] += len(events)
             if progress:
@@ -238,19 +240,19 @@ def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):
         wt = weights_at(setup.waveforms, np.array([t]))
         wm = weights_at(mean, np.array([t]))
         t_us = int(round(t * 1e6))
-        wr.append_frame("log_photocurrent", np.log(photocurrent_at(setup, np.array([t]), wt)[0] + dark)
+        wr.append_frame(layout.LOG_PHOTOCURRENT, np.log(photocurrent_at(setup, np.array([t]), wt)[0] + dark)
                         .astype(np.float32), t_us)
-        wr.append_frame("log_photocurrent_no_flicker",
+        wr.append_frame(layout.LOG_PHOTOCURRENT_NO_FLICKER,
                         np.log(photocurrent_at(setup, np.array([t]), wm)[0] + dark).astype(np.float32), t_us)
         if aps is not None and t >= config.aps_exposure_s:
             start = t - config.aps_exposure_s
             wa = weights_at(setup.waveforms, np.array([start]), average_over_s=config.aps_exposure_s)
             current = photocurrent_at(setup, np.array([start + 0.5 * config.aps_exposure_s]), wa)[0]
             electrons = current * config.aps_exposure_s / elementary_charge
-            wr.append_frame("aps", aps.read(electrons, config.aps_exposure_s, rng=aps_rng), t_us)
+            wr.append_frame(layout.APS, aps.read(electrons, config.aps_exposure_s, rng=aps_rng), t_us)
     if len(frame_t):
         wr.set_attrs("/frames", units="ln(A) for log_photocurrent*, DN for aps")
     if aps is not None and len(frame_t) > 1:
         p = aps.params
-        wr.set_attrs("/frames/aps", offset_dn=p.offset_dn, system_gain_dn_per_e=p.system_gain_dn_per_e,
+        wr.set_attrs(f"/frames/{layout.APS}", offset_dn=p.offset_dn, system_gain_dn_per_e=p.system_gain_dn_per_e,
                      bit_depth=p.bit_depth, exposure_s=config.aps_exposure_s)

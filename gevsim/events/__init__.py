@@ -2,7 +2,6 @@
 
 from gevsim.events.brightness import BrightnessEmulator, per_pixel_thresholds
 from gevsim.events.center_surround import CenterSurroundEmulator
-from gevsim.events.frames import emulate_frames, load_evreal_frames, load_frame_folder, load_video
 from gevsim.events.gradient import (
     LN_THRESHOLDS,
     PAPER_THRESHOLDS,
@@ -27,12 +26,8 @@ __all__ = [
     "LN_THRESHOLDS",
     "PAPER_THRESHOLDS",
     "decode",
-    "emulate_frames",
     "event_probability",
     "event_rates",
-    "load_evreal_frames",
-    "load_frame_folder",
-    "load_video",
     "encode",
     "gradients",
     "ternary",

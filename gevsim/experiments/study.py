@@ -134,7 +134,7 @@ def load_study(path: str | Path) -> Study:
         if (not isinstance(values, list) or not values
                 or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in values)):
             r.fail("sweep.thresholds_ln", f"expected lists of positive numbers (one threshold set each), got {values!r}")
-    from gevsim.reconstruct.runner import BRIGHTNESS_METHODS, GRADIENT_METHODS
+    from gevsim.evaluation.runner import BRIGHTNESS_METHODS, GRADIENT_METHODS
 
     for method in st.get("methods", ["dct", "direct"]):
         base_method = method[:-3] if str(method).endswith("_rc") else method
@@ -244,7 +244,7 @@ def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> 
     from gevsim.emulation import prepare, run
     from gevsim.emulation.driver import render_noise_floor
     from gevsim.emulation.summary import summarize
-    from gevsim.reconstruct.runner import reconstruct_file
+    from gevsim.evaluation import reconstruct_file
 
     cfg = run_config(study, params)
     folder.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,9 @@
-"""File formats: HDF5 event files, EVREAL folders, text events, OpenEXR images, atomic writes."""
+"""File formats: HDF5 event files, EVREAL folders, text events, OpenEXR images, frame sequences,
+atomic writes."""
 
-from gevsim.io.atomic import atomic_path, atomic_write_text
+from gevsim.io.atomic import MANIFEST, Staged, atomic_dir, atomic_path, atomic_write_text
 from gevsim.io.evreal import export_evreal, import_evreal
+from gevsim.io.frames import load_evreal_frames, load_frame_folder, load_video
 from gevsim.io.exr import read_exr, read_exr_layers, write_exr, write_exr_layers
 from gevsim.io.hdf5 import EventReader, EventWriter
 from gevsim.io.text import export_text, import_text
@@ -9,12 +11,18 @@ from gevsim.io.text import export_text, import_text
 __all__ = [
     "EventReader",
     "EventWriter",
+    "MANIFEST",
+    "Staged",
+    "atomic_dir",
     "atomic_path",
     "atomic_write_text",
     "export_evreal",
     "export_text",
     "import_evreal",
     "import_text",
+    "load_evreal_frames",
+    "load_frame_folder",
+    "load_video",
     "read_exr",
     "read_exr_layers",
     "write_exr",

@@ -29,11 +29,7 @@ three must be present or all absent.
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -41,33 +37,11 @@ import numpy as np
 from gevsim import __version__
 from gevsim.errors import ConfigError
 from gevsim.events.types import BRIGHTNESS_DTYPE, check_events
+from gevsim.io.atomic import atomic_dir
 
 EVENT_FILES = ("events_ts.npy", "events_xy.npy", "events_p.npy")
 IMAGE_FILES = ("images.npy", "images_ts.npy", "image_event_indices.npy")
 METADATA = "metadata.json"
-
-
-@contextlib.contextmanager
-def _atomic_dir(folder: Path):
-    """Yield a staging folder beside ``folder``; swap it in on success."""
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=folder.parent))
-    try:
-        yield stage
-        if folder.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".old", dir=folder.parent))
-            os.replace(folder, old / "x")
-            try:
-                os.replace(stage, folder)
-            except BaseException:
-                os.replace(old / "x", folder)
-                raise
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(stage, folder)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
 
 
 def image_event_indices(events_t_us: np.ndarray, images_t_us: np.ndarray) -> np.ndarray:
@@ -125,7 +99,7 @@ def export_evreal(folder, events: np.ndarray, images: np.ndarray | None, images_
     metadata = {"sensor_resolution": [int(height), int(width)], "width": int(width), "height": int(height),
                 "gevsim_version": __version__, **(extra_metadata or {})}
     folder = Path(folder)
-    with _atomic_dir(folder) as stage:
+    with atomic_dir(folder) as stage:
         save = lambda name, arr: np.save(stage / name, arr, allow_pickle=False)  # noqa: E731
         save("events_ts.npy", events["t"] / 1e6)
         save("events_xy.npy", np.stack([events["x"], events["y"]], axis=1).astype(np.int16))

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
-import tempfile
 from pathlib import Path
 
 import h5py
@@ -31,6 +29,7 @@ import numpy as np
 from gevsim import __version__
 from gevsim.errors import ConfigError, suggest
 from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE
+from gevsim.io.atomic import Staged
 
 log = logging.getLogger(__name__)
 
@@ -86,10 +85,8 @@ class EventWriter:
             raise ValueError(f"compression must be 'gzip' or 'lzf', got {compression!r}")
         self.path = Path(path)
         self.compression = compression
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
-        os.close(fd)
-        self._tmp = Path(tmp)
+        self._stage = Staged(self.path, suffix=".tmp")
+        self._tmp = self._stage.path
         self._streams: dict[str, _Stream] = {}
         self._t_end_us: int | None = None
         try:
@@ -223,7 +220,7 @@ class EventWriter:
         try:
             self._finalise(self._t_end_us if t_end_us is None else int(t_end_us))
             self._file.close()
-            os.replace(self._tmp, self.path)
+            self._stage.commit()
         except BaseException:
             self.abort()
             raise
@@ -247,8 +244,7 @@ class EventWriter:
         with contextlib.suppress(Exception):
             if getattr(self, "_file", None) is not None and self._file.id.valid:
                 self._file.close()
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(self._tmp)
+        self._stage.discard()
         self._file = None
 
 

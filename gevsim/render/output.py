@@ -1,68 +1,25 @@
 """Write a rendered scene to a folder: basis EXRs, the mixed irradiance
 sequence, a JSON manifest, and (optionally) PNG plots.
 
-Everything is written into a temporary sibling folder that is renamed onto
-the target at the end, so a failed or interrupted run leaves no partial
-output and an earlier result survives until the new one is complete.
+Everything is written into a staged folder that replaces the target at the
+end (:func:`gevsim.io.atomic_dir`), so a failed or interrupted run leaves no
+partial output and an earlier result survives until the new one is complete.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import shutil
-import tempfile
-from pathlib import Path
 
 import numpy as np
-import tomli_w
 
 import gevsim
-from gevsim.errors import ConfigError
 from gevsim.illumination import flicker_index, percent_flicker
-from gevsim.io import write_exr
-from gevsim.optics import Lens, cos4_map, focal_plane_irradiance, from_spec as optics_from_spec
-from gevsim.optics import illuminance_lux, luminance
+from gevsim.io import MANIFEST, atomic_dir, write_exr
+from gevsim.optics import Lens, cos4_map, focal_plane_irradiance, illuminance_lux, luminance
 from gevsim.render.basis import BasisSet
 from gevsim.render.manifest import SceneManifest
-
-MANIFEST = "manifest.json"
-
-
-@contextlib.contextmanager
-def staged_dir(out: str | os.PathLike):
-    """Yield a temporary folder that replaces ``out`` when the block succeeds.
-
-    Refuses to replace an existing non-empty folder that is not a gevsim output.
-    """
-    out = Path(out)
-    if out.exists():
-        if not out.is_dir():
-            raise ConfigError("output exists and is not a folder", source=str(out))
-        if any(out.iterdir()) and not (out / MANIFEST).is_file():
-            raise ConfigError("output folder is not empty and holds no gevsim manifest.json; "
-                              "choose another --out", source=str(out))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
-    try:
-        yield stage
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
-    old = None
-    if out.exists():
-        old = out.with_name(f".{out.name}.old-{os.getpid()}")
-        os.replace(out, old)
-    os.replace(stage, out)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-
-
-def scene_optics(manifest: SceneManifest):
-    """(Lens, Pixel) from the manifest's ``[optics]`` table."""
-    return optics_from_spec(manifest.optics, source=manifest.source)
-
+from gevsim.render.scene_config import resolved_config, scene_optics
 
 def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s, *, lens: Lens,
                       exposure_s=None, flicker=True) -> np.ndarray:
@@ -71,11 +28,6 @@ def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s, *, lens
     radiance = basis.radiance(times_s, exposure_s=exposure_s, flicker=flicker)
     cos4 = cos4_map(r.width, r.height, fov_x_deg=manifest.fov_deg)
     return focal_plane_irradiance(radiance, lens=lens, cos4=cos4).astype(np.float32)
-
-
-def resolved_config(manifest: SceneManifest) -> str:
-    """The manifest as resolved (after ``extends`` and command-line overrides), as TOML."""
-    return tomli_w.dumps(manifest.raw)
 
 
 def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSet, *, variant, frame_rate_hz=None,
@@ -118,7 +70,7 @@ def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSe
             "flicker_index": float(flicker_index(wf)),
             "files": [f"basis/{name}/pose_{p:04d}.exr" for p in range(len(basis.times_s))],
         })
-    with staged_dir(out) as stage:
+    with atomic_dir(out, marker=MANIFEST) as stage:
         for k, name in enumerate(basis.groups):
             for p, t in enumerate(basis.times_s):
                 write_exr(stage / "basis" / name / f"pose_{p:04d}.exr", basis.images[p, k],

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 import gevsim
+from gevsim.io import MANIFEST, atomic_dir
 from gevsim.reconstruct.tonemap import ToneMap
-from gevsim.render.output import MANIFEST, staged_dir
 
 
 def _png(path: Path, image01: np.ndarray) -> None:
@@ -75,7 +75,7 @@ def write_reconstructions(out: str | Path, source: str | Path, results: list, gt
             "event_probability": st["event_probability"],
             "bits_per_s": float(bits_per_second(st["rates_hz"]["total"], bits_per_event=bits_per_event)),
         }
-    with staged_dir(out) as stage:
+    with atomic_dir(out, marker=MANIFEST) as stage:
         for name, frames in recs01.items():
             for k, img in enumerate(frames):
                 _png(stage / "frames" / name / f"{k:05d}.png", img)

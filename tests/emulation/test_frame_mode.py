@@ -1,92 +1,11 @@
-"""Frame mode: loaders, and events from frames exactly as in Lehtonen et al."""
+"""Frame mode: events from frames exactly as in Lehtonen et al., and the file run_frames writes."""
 
 import numpy as np
 import pytest
 
-from gevsim.errors import ConfigError
 from gevsim.events import GradientEmulator, decode, encode, gradients, ternary, threshold_matrix
-from gevsim.events.frames import emulate_frames, load_evreal_frames, load_frame_folder, load_video
 from gevsim.events.gradient import PAPER_THRESHOLDS
-
-iio = pytest.importorskip("imageio.v3")
-
-
-def _write_pngs(folder, frames_u8, times=None):
-    for k, f in enumerate(frames_u8):
-        iio.imwrite(folder / f"frame_{k}.png", f)
-    if times is not None:
-        (folder / "timestamps.txt").write_text("".join(f"{t!r}\n" for t in times))
-
-
-def test_png_folder_round_trips_exactly(tmp_path, rng):
-    # 12 frames named frame_0 .. frame_11: natural order puts frame_2 before frame_10.
-    frames = rng.integers(0, 256, (12, 6, 8), dtype=np.uint8)
-    times = [0.1 * k + 0.05 for k in range(12)]
-    _write_pngs(tmp_path, frames, times)
-    got, t = load_frame_folder(tmp_path)
-    assert got.dtype == np.float64 and got.shape == (12, 6, 8)
-    np.testing.assert_array_equal(got, frames / 255.0)
-    np.testing.assert_array_equal(t, times)
-
-
-def test_16_bit_and_colour_frames_and_fps(tmp_path):
-    a = np.full((4, 5), 65535, np.uint16)
-    a[0, 0] = 0
-    iio.imwrite(tmp_path / "a.png", a)
-    rgb = np.zeros((4, 5, 3), np.uint8)
-    rgb[..., 0] = 255  # pure red -> Rec.601 luma 0.299
-    iio.imwrite(tmp_path / "b.png", rgb)
-    got, t = load_frame_folder(tmp_path, fps=25.0)
-    assert got[0, 0, 0] == 0.0 and got[0, 1, 1] == 1.0
-    np.testing.assert_allclose(got[1], 0.299)
-    np.testing.assert_allclose(t, [0.0, 0.04])
-
-
-def test_folder_errors_name_the_file(tmp_path):
-    with pytest.raises(ConfigError, match="no image files"):
-        load_frame_folder(tmp_path, fps=10)
-    _write_pngs(tmp_path, np.zeros((2, 4, 4), np.uint8))
-    with pytest.raises(ConfigError, match="give fps") as err:
-        load_frame_folder(tmp_path)
-    assert str(tmp_path) in str(err.value)
-    (tmp_path / "timestamps.txt").write_text("0.0\n0.1\n0.2\n")
-    with pytest.raises(ConfigError, match="3 timestamps for 2 frames"):
-        load_frame_folder(tmp_path)
-    (tmp_path / "timestamps.txt").write_text("0.1\n0.1\n")
-    with pytest.raises(ConfigError, match="increase strictly") as err:
-        load_frame_folder(tmp_path)
-    assert "timestamps.txt" in str(err.value)
-    iio.imwrite(tmp_path / "frame_9.png", np.zeros((4, 6), np.uint8))
-    with pytest.raises(ConfigError, match="differs") as err:
-        load_frame_folder(tmp_path, fps=10)
-    assert "frame_9.png" in str(err.value)
-
-
-def test_video_frames_and_fps(tmp_path):
-    video = np.zeros((3, 8, 8), np.uint8)
-    video[1, :, 4:] = 255
-    video[2] = 255
-    iio.imwrite(tmp_path / "v.gif", video, loop=0)
-    frames, t = load_video(tmp_path / "v.gif", fps=10.0)
-    np.testing.assert_allclose(frames, video / 255.0, atol=1e-12)
-    np.testing.assert_allclose(t, [0.0, 0.1, 0.2])
-    with pytest.raises(ConfigError, match="frame rate"):
-        load_video(tmp_path / "v.gif")
-
-
-def test_evreal_frames(tmp_path, rng):
-    from gevsim.events.types import BRIGHTNESS_DTYPE
-    from gevsim.io.evreal import export_evreal
-
-    images = rng.integers(0, 256, (3, 4, 6), dtype=np.uint8)
-    export_evreal(tmp_path / "seq", np.zeros(0, BRIGHTNESS_DTYPE), images, np.array([0, 5000, 10000]),
-                  width=6, height=4)
-    frames, t = load_evreal_frames(tmp_path / "seq")
-    np.testing.assert_array_equal(frames, images / 255.0)
-    np.testing.assert_allclose(t, [0.0, 0.005, 0.01])
-    export_evreal(tmp_path / "bare", np.zeros(0, BRIGHTNESS_DTYPE), None, None, width=6, height=4)
-    with pytest.raises(ConfigError, match="no ground-truth images"):
-        load_evreal_frames(tmp_path / "bare")
+from gevsim.emulation.frames import emulate_frames
 
 
 @pytest.mark.parametrize("rc", [False, True])
@@ -165,3 +84,23 @@ def test_input_errors(rng):
         emulate_frames(good, t, emulators=["gradiant"], rng=rng)
     with pytest.raises(TypeError, match="divide 8-bit"):
         emulate_frames((good * 255).astype(np.uint8), t, rng=rng)
+
+
+def test_run_frames_writes_events_ground_truth_and_decoding_state(tmp_path, rng):
+    from gevsim.emulation import layout, run_frames
+    from gevsim.io import EventReader
+
+    frames = rng.random((4, 6, 8))
+    t_s = np.arange(4) / 30.0
+    summary = run_frames(frames, t_s, tmp_path / "f.h5", seed=3, source="synthetic")
+    with EventReader(tmp_path / "f.h5") as r:
+        assert {s: len(r.read(s)) for s in r.streams} == summary["counts"]
+        images, t_us = r.frames(layout.INTENSITY)
+        np.testing.assert_array_equal(images, frames.astype(np.float32))
+        assert list(t_us) == [0, 33333, 66667, 100000]
+        for name, rc in (("gradient", False), ("gradient_rc", True)):
+            state = r.array(layout.initial_state_key(name))
+            em = GradientEmulator((6, 8), thresholds=PAPER_THRESHOLDS, rc=rc, interpolate=False)
+            np.testing.assert_array_equal(state, em.ternary_of(frames[0]))
+            np.testing.assert_array_equal(decode(r.read(f"{name}_events"), state), em.ternary_of(frames[-1]))
+        assert r.attrs["mode"] == "frames" and r.seed == 3

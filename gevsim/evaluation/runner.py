@@ -18,11 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim.emulation import layout
 from gevsim.errors import ConfigError, suggest
 from gevsim.events import decode
 from gevsim.io import EventReader
 from gevsim.metrics import frame_metrics
-from gevsim.reconstruct.gradient import global_photodiode_mean
+from gevsim.reconstruct import brightness
+from gevsim.reconstruct.gradient import GradientReconstructor, global_photodiode_mean
 from gevsim.reconstruct.tonemap import ToneMap
 
 GRADIENT_METHODS = ("dct", "sor")
@@ -44,7 +46,7 @@ class Reconstruction:
         return {k: float(np.mean([m[k] for m in self.metrics if np.isfinite(m[k])])) for k in keys}
 
 
-REFERENCES = {"flicker": "log_photocurrent", "no-flicker": "log_photocurrent_no_flicker"}
+REFERENCES = {"flicker": layout.LOG_PHOTOCURRENT, "no-flicker": layout.LOG_PHOTOCURRENT_NO_FLICKER}
 
 
 def ground_truth(reader: EventReader, reference: str = "flicker") -> tuple[np.ndarray, np.ndarray, bool]:
@@ -53,7 +55,7 @@ def ground_truth(reader: EventReader, reference: str = "flicker") -> tuple[np.nd
     if reference not in REFERENCES:
         raise ConfigError(f"unknown reference {reference!r}{suggest(reference, REFERENCES)}; "
                           f"choose from {', '.join(REFERENCES)}", key="--reference")
-    for name, is_log in ((REFERENCES[reference], True), ("intensity", False)):
+    for name, is_log in ((REFERENCES[reference], True), (layout.INTENSITY, False)):
         if name in reader.frame_names:
             images, t_us = reader.frames(name)
             return images.astype(np.float64), np.asarray(t_us, np.int64), is_log
@@ -95,14 +97,12 @@ def reconstruct_file(path: str | Path, method: str, *, mean: str = "ground-truth
 
 
 def _gradient(r: EventReader, gt, t_us, method, *, rc, c) -> Reconstruction:
-    from gevsim.reconstruct.gradient import GradientReconstructor
-
     name = "gradient_rc" if rc else "gradient"
     stream = f"{name}_events"
     if stream not in r.streams:
         raise ConfigError(f"holds no {stream} stream (emulate with '{name}' among the emulators)", source=str(r.path))
-    theta = r.array(f"/thresholds/{name}").astype(np.float64)
-    state = r.array(f"/initial_state/{name}").astype(np.int8)
+    theta = r.array(layout.thresholds_key(name)).astype(np.float64)
+    state = r.array(layout.initial_state_key(name)).astype(np.int8)
     solver = GradientReconstructor(gt.shape[1:], theta, rc=rc, method=method, c=c)
     frames = np.empty_like(gt)
     previous = None
@@ -116,11 +116,9 @@ def _gradient(r: EventReader, gt, t_us, method, *, rc, c) -> Reconstruction:
 
 
 def _brightness(r: EventReader, gt, t_us, method, *, contrast, is_log) -> Reconstruction:
-    from gevsim.reconstruct import brightness
-
     if contrast is None:
         try:
-            on, off = (float(v) for v in r.array("/thresholds/dvs"))
+            on, off = (float(v) for v in r.array(layout.thresholds_key("dvs")))
         except (KeyError, ConfigError):
             on = off = 0.2
     else:
@@ -134,11 +132,11 @@ def _brightness(r: EventReader, gt, t_us, method, *, contrast, is_log) -> Recons
     elif method == "high_pass":
         frames = brightness.high_pass_filter(events, t_us, width=w, height=h, contrast=(on, off))
     else:
-        if "aps" not in r.frame_names:
+        if layout.APS not in r.frame_names:
             raise ConfigError("the complementary filter needs APS frames: emulate with aps = true",
                               source=str(r.path), key="--method")
-        aps, aps_t = r.frames("aps")
-        offset = float(r.array_attrs("/frames/aps").get("offset_dn", 0.0))
+        aps, aps_t = r.frames(layout.APS)
+        offset = float(r.array_attrs(f"/frames/{layout.APS}").get("offset_dn", 0.0))
         aps_log = np.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
         frames = brightness.complementary_filter(events, aps_log, aps_t, t_us, width=w, height=h,
                                                  contrast=(on, off))

@@ -1,0 +1,8 @@
+"""Evaluation: reconstruct frames from an emulation file, score them against its ground
+truth and write the results (the solvers and filters themselves live in
+:mod:`gevsim.reconstruct`)."""
+
+from gevsim.evaluation.output import side_by_side, write_reconstructions
+from gevsim.evaluation.runner import Reconstruction, ground_truth, reconstruct_file
+
+__all__ = ["Reconstruction", "ground_truth", "reconstruct_file", "side_by_side", "write_reconstructions"]
