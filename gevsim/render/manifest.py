@@ -98,9 +98,9 @@ class RenderSettings:
     ``noise_percentile`` percentile over pixels of the standard error of
     ln(luminance), for the lamp mixtures the waveforms reach, is at most
     ``noise_target_ln``, or ``max_spp`` / ``time_budget_s`` is reached (see
-    :mod:`gevsim.render.convergence`). ``noise_target_ln = "auto"`` is 0.1 x
-    the smallest event threshold of the sensor an emulation uses (0.1 x 0.05 ln
-    when rendering alone). ``noise_floor_rel`` keeps near-black pixels from
+    :mod:`gevsim.render.convergence`). ``noise_target_ln = "auto"`` is 0.4 x
+    the smallest event threshold of the sensor an emulation uses (0.4 x 0.05 ln
+    when rendering alone; the fraction is measured, see ``AUTO_TARGET_FRACTION``). ``noise_floor_rel`` keeps near-black pixels from
     dominating: the error is taken relative to (value + noise_floor_rel x the
     mixture's mean). ``noise_metric`` chooses the error measured: of the change
     of ln luminance between lamp mixtures (``"flicker"``, default) or of ln
