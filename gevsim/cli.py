@@ -160,8 +160,7 @@ def cmd_reconstruct(args) -> int:
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
     results, gt, tone = [], None, None
     for method in methods:
-        base, rc = (method[:-3], True) if method.endswith("_rc") else (method, False)
-        rec, gt, tone = reconstruct_file(args.file, base, mean=args.mean, rc=rc, c=args.c, contrast=args.contrast,
+        rec, gt, tone = reconstruct_file(args.file, method, mean=args.mean, c=args.c, contrast=args.contrast,
                                          reference=args.reference)
         results.append(rec)
     settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast,
@@ -269,8 +268,9 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("reconstruct", help="reconstruct frames from an emulation file and score them")
     c.add_argument("file", help="an HDF5 file written by `gevsim emulate`")
     c.add_argument("--method", action="append", required=True,
-                   help="dct, sor (gradient events; add _rc for the resolution-compressed stream), direct, "
-                        "high_pass, complementary (brightness events); repeat or comma-separate")
+                   help="reconstruction methods by full name, as listed in gevsim.evaluation.METHODS: gradient "
+                        "events dct, sor and dct_rc, sor_rc (resolution-compressed stream); brightness events "
+                        "direct, high_pass, complementary; repeat or comma-separate")
     c.add_argument("--out", required=True, help="output folder (replaced atomically)")
     c.add_argument("--mean", default="ground-truth", help="level: ground-truth (papers' protocol) or photodiode")
     c.add_argument("--c", type=float, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")

@@ -44,13 +44,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gevsim.config import TomlReader, read_toml
-from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.emulation.emulators import EMULATORS, check_emulator
+from gevsim.errors import ConfigError, check_keys
 from gevsim.render.manifest import check_render_overrides
 
-EMULATORS = ("dvs", "gradient", "gradient_rc", "csdvs")
-#: HDF5 stream of each emulator.
-STREAMS = {"dvs": "events", "gradient": "gradient_events", "gradient_rc": "gradient_rc_events",
-           "csdvs": "csdvs_events"}
 TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
                   "aps", "aps_exposure_s")
@@ -60,7 +57,7 @@ EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s"
 class EmulationConfig:
     scene: str
     sensor: str = "davis346"
-    emulators: tuple[str, ...] = EMULATORS
+    emulators: tuple[str, ...] = tuple(EMULATORS)
     seed: int = 0
     duration_s: float | None = None
     step_s: float = 1e-5
@@ -124,9 +121,10 @@ def load_config(path: str | Path) -> EmulationConfig:
     if not isinstance(emulators, list) or not emulators:
         r.fail("emulation.emulators", f"expected a non-empty list drawn from {list(EMULATORS)}, got {emulators!r}")
     for name in emulators:
-        if name not in EMULATORS:
-            r.fail("emulation.emulators", f"unknown emulator {name!r}{suggest(str(name), EMULATORS)}; "
-                                          f"choose from {', '.join(EMULATORS)}")
+        try:
+            check_emulator(name)
+        except ValueError as exc:
+            r.fail("emulation.emulators", str(exc))
     render = r.table(raw, "render")
     check_render_overrides(render, r, "render")
     grad = r.table(raw, "gradient")

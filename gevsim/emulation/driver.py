@@ -20,8 +20,8 @@ import numpy as np
 from scipy.constants import elementary_charge
 
 from gevsim.emulation import layout
-from gevsim.emulation.config import STREAMS, EmulationConfig, check_consistency
-from gevsim.events import BrightnessEmulator, CenterSurroundEmulator, GradientEmulator
+from gevsim.emulation.config import EmulationConfig, check_consistency
+from gevsim.emulation.emulators import APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, SEED_SLOTS, make_emulator
 from gevsim.errors import ConfigError, suggest
 from gevsim.illumination import from_spec, weights_at
 from gevsim.io import EventWriter
@@ -57,10 +57,11 @@ def prepare(config: EmulationConfig, *, cache_dir=None, progress=None) -> Setup:
     duration = config.duration_s or manifest.duration_s
     manifest = override(manifest, duration_s=duration)
     check_consistency(config, duration_s=duration)
-    if "gradient_rc" in config.emulators and (manifest.render.width % 2 or manifest.render.height % 2):
-        raise ConfigError(f"gradient_rc (resolution compression) needs an even width and height, got "
-                          f"{manifest.render.width}x{manifest.render.height}", source=config.source,
-                          key="emulation.emulators")
+    for name in config.emulators:
+        if EMULATORS[name].even_size and (manifest.render.width % 2 or manifest.render.height % 2):
+            raise ConfigError(f"{name} (resolution compression) needs an even width and height, got "
+                              f"{manifest.render.width}x{manifest.render.height}", source=config.source,
+                              key="emulation.emulators")
     preset = load_preset(config.sensor)
     if config.sensor_overrides:
         preset = with_overrides(preset, config.sensor_overrides, source=config.source)
@@ -164,28 +165,20 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
     render_s = time.perf_counter() - start
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width
-    seeds = np.random.SeedSequence(config.seed).spawn(7)
-    pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(seeds[0]))
-    emulators = {}
-    if "dvs" in config.emulators:
-        emulators["dvs"] = BrightnessEmulator((h, w), preset.events, rng=np.random.default_rng(seeds[1]))
-    for name, rc, s in (("gradient", False, seeds[2]), ("gradient_rc", True, seeds[3])):
-        if name in config.emulators:
-            emulators[name] = GradientEmulator((h, w), thresholds=config.thresholds_ln, rc=rc,
-                                               mismatch_sigma=preset.events.threshold_mismatch_ln,
-                                               hysteresis=config.hysteresis_ln, rng=np.random.default_rng(s))
-    if "csdvs" in config.emulators:
-        emulators["csdvs"] = CenterSurroundEmulator(
-            (h, w), preset.events, surround_length_px=config.surround_length_px,
-            surround_tau_s=config.surround_tau_s, rng=np.random.default_rng(seeds[4]))
-    aps = ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[5])) if config.aps else None
-    aps_rng = np.random.default_rng(seeds[6]) if config.aps else None
+    seeds = np.random.SeedSequence(config.seed).spawn(SEED_SLOTS)
+    pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise,
+                       rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]))
+    emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
+                                     rng=np.random.default_rng(seeds[entry.seed_slot]))
+                 for name, entry in EMULATORS.items() if name in config.emulators}
+    aps = ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED])) if config.aps else None
+    aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
 
     n_steps = int(round(setup.duration_s / config.step_s))
     t_end_all = config.step_s * np.arange(1, n_steps + 1)
     frame_t = (np.arange(0.0, setup.duration_s + 1e-12, 1.0 / config.frame_rate_hz)
                if config.frame_rate_hz > 0 else np.zeros(0))
-    counts = {STREAMS[n]: 0 for n in emulators}
+    counts = {EMULATORS[n].stream: 0 for n in emulators}
     dark = float(preset.noise.dark_current_a)
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,
              "flicker": flicker, "noise": noise, "variant": setup.variant.variant,
@@ -195,12 +188,9 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
     event_s = {n: 0.0 for n in emulators}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
                      extra_attrs=extra) as wr:
-        for name in ("gradient", "gradient_rc"):
-            if name in emulators:
-                layout.write_thresholds(wr, name, emulators[name].theta.astype(np.float32))
-        if "dvs" in emulators:  # nominal ON/OFF contrast steps, for brightness-event reconstruction
-            layout.write_thresholds(wr, "dvs", np.array([preset.events.threshold_on_ln,
-                                                         preset.events.threshold_off_ln]))
+        for name, em in emulators.items():  # what reconstruction needs: theta, nominal contrast steps
+            if EMULATORS[name].thresholds is not None:
+                layout.write_thresholds(wr, name, EMULATORS[name].thresholds(em, preset))
         if config.frame_rate_hz > 0:
             _write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
         chunks = range(0, n_steps, config.chunk_steps)
@@ -216,10 +206,11 @@ def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=Tru
                 tick = time.perf_counter()
                 events = em.process(v, t_end)
                 event_s[name] += time.perf_counter() - tick
-                if c == 0 and hasattr(em, "initial_state"):  # decoding starts from it
+                stream = EMULATORS[name].stream
+                if c == 0 and EMULATORS[name].decodes:  # decoding starts from it
                     layout.write_initial_state(wr, name, em.initial_state)
-                wr.append(STREAMS[name], events)
-                counts[STREAMS[name]] += len(events)
+                wr.append(stream, events)
+                counts[stream] += len(events)
             if progress:
                 progress(c + 1, len(chunks))
         wr.close(t_end_us=int(round(setup.duration_s * 1e6)))

@@ -18,14 +18,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from gevsim.emulation import layout
-from gevsim.errors import suggest
-from gevsim.events.brightness import BrightnessEmulator
-from gevsim.events.gradient import PAPER_THRESHOLDS, GradientEmulator
+from gevsim.emulation.emulators import EMULATORS, FRAME_EMULATORS, check_emulator
+from gevsim.events.gradient import PAPER_THRESHOLDS
 from gevsim.io import EventWriter
 from gevsim.pixel.params import EventParams
-
-#: emulator name -> key of its event stream in the result of :func:`emulate_frames`.
-EMULATORS = {"dvs": "events", "gradient": "gradient_events", "gradient_rc": "gradient_rc_events"}
 
 
 def _check_frames(frames, t_s) -> tuple[np.ndarray, np.ndarray]:
@@ -51,7 +47,7 @@ def _check_frames(frames, t_s) -> tuple[np.ndarray, np.ndarray]:
     return f.astype(np.float64, copy=False), t
 
 
-def emulate_frames(frames, t_s, *, emulators: Sequence[str] = ("dvs", "gradient", "gradient_rc"),
+def emulate_frames(frames: np.ndarray, t_s: np.ndarray, *, emulators: Sequence[str] = FRAME_EMULATORS,
                    thresholds: Sequence[float] = PAPER_THRESHOLDS,
                    dvs_params: EventParams = EventParams(threshold_on_ln=0.2, threshold_off_ln=0.2),
                    log_eps: float = 1 / 255, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -61,8 +57,8 @@ def emulate_frames(frames, t_s, *, emulators: Sequence[str] = ("dvs", "gradient"
     ----------
     frames : float (N, H, W), N >= 2, linear gray values in [0, 1].
     t_s : (N,) frame times in seconds, strictly increasing.
-    emulators : any of ``"dvs"``, ``"gradient"``, ``"gradient_rc"`` (resolution compression,
-        even H and W).
+    emulators : any of :data:`~gevsim.emulation.emulators.FRAME_EMULATORS`: ``"dvs"``,
+        ``"gradient"``, ``"gradient_rc"`` (resolution compression, even H and W).
     thresholds : gradient thresholds on the [0, 1] frames (Lehtonen et al.: 4, 8, 16 / 255).
     dvs_params : DVS thresholds etc. in ln units.
     log_eps : DVS events are computed on ``ln(frame + log_eps)``; the offset of one 8-bit code
@@ -78,28 +74,20 @@ def emulate_frames(frames, t_s, *, emulators: Sequence[str] = ("dvs", "gradient"
     """
     names = (emulators,) if isinstance(emulators, str) else tuple(emulators)
     if not names:
-        raise ValueError(f"emulators must name at least one of {', '.join(EMULATORS)}")
-    for name in names:
-        if name not in EMULATORS:
-            raise ValueError(f"unknown emulator {name!r}{suggest(str(name), EMULATORS)}; "
-                             f"choose from {', '.join(EMULATORS)}")
+        raise ValueError(f"emulators must name at least one of {', '.join(FRAME_EMULATORS)}")
+    entries = {name: check_emulator(name, FRAME_EMULATORS) for name in dict.fromkeys(names)}
     f, t = _check_frames(frames, t_s)
     shape = f.shape[1:]
-    if "gradient_rc" in names and (shape[0] % 2 or shape[1] % 2):
-        raise ValueError(f"gradient_rc (resolution compression) needs even height and width, "
-                         f"got {shape[0]}x{shape[1]}")
+    for name, entry in entries.items():
+        if entry.even_size and (shape[0] % 2 or shape[1] % 2):
+            raise ValueError(f"{name} (resolution compression) needs even height and width, "
+                             f"got {shape[0]}x{shape[1]}")
     if not np.isfinite(log_eps) or log_eps <= 0:
         raise ValueError(f"log_eps must be a positive number, got {log_eps!r}")
     out = {}
-    for name in dict.fromkeys(names):
-        if name == "dvs":
-            if not isinstance(rng, np.random.Generator):
-                raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
-            emu = BrightnessEmulator(shape, dvs_params, rng=rng)
-            out[EMULATORS[name]] = emu.process(np.log(f + log_eps), t)
-        else:
-            emu = GradientEmulator(shape, thresholds=thresholds, rc=name == "gradient_rc", interpolate=False)
-            out[EMULATORS[name]] = emu.process(f, t)
+    for name, entry in entries.items():
+        emu = entry.build_frames(shape, thresholds=thresholds, dvs_params=dvs_params, rng=rng)
+        out[entry.stream] = emu.process(np.log(f + log_eps) if entry.log_input else f, t)
     return out
 
 
@@ -120,10 +108,10 @@ def run_frames(frames: np.ndarray, t_s: np.ndarray, out: str | os.PathLike, *, s
             wr.append_frame(layout.INTENSITY, frames[k].astype(np.float32), int(round(t * 1e6)))
         for name, events in streams.items():
             wr.append(name, events)
-        for name, rc in (("gradient", False), ("gradient_rc", True)):
-            if EMULATORS[name] in streams:  # what decoding and reconstruction start from
-                em = GradientEmulator((h, w), thresholds=PAPER_THRESHOLDS, rc=rc, interpolate=False)
-                layout.write_thresholds(wr, name, em.theta.astype(np.float32))
+        for name, entry in EMULATORS.items():
+            if entry.decodes and entry.stream in streams:  # what decoding and reconstruction start from
+                em = entry.build_frames((h, w), thresholds=PAPER_THRESHOLDS, dvs_params=None, rng=None)
+                layout.write_thresholds(wr, name, entry.thresholds(em, None))
                 layout.write_initial_state(wr, name, em.ternary_of(frames[0]))
         wr.close(t_end_us=int(round(t_s[-1] * 1e6)))
     return {"width": w, "height": h, "frames": len(frames), "duration_s": float(t_s[-1] - t_s[0]),

@@ -55,7 +55,7 @@ def write_reconstructions(out: str | Path, source: str | Path, results: list, gt
 
     streams = summarize(source)
     gt01 = tone(gt)
-    recs01 = {r.method + ("_rc" if r.stream == "gradient_rc_events" else ""): tone(r.frames) for r in results}
+    recs01 = {r.method: tone(r.frames) for r in results}
     per_frame = {name: r.metrics for name, r in zip(recs01, results)}
     summary = {
         "gevsim": gevsim.__version__,

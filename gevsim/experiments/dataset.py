@@ -39,7 +39,8 @@ import numpy as np
 
 from gevsim import __version__
 from gevsim.config import TomlReader, read_toml
-from gevsim.emulation.config import EMULATORS, EmulationConfig
+from gevsim.emulation.config import EmulationConfig
+from gevsim.emulation.emulators import EMULATORS
 from gevsim.render.manifest import check_render_overrides
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.io import EventReader, atomic_write_text, export_evreal
@@ -141,7 +142,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     check_keys(raw, ("dataset",), source=r.source, where="")
     ds = r.table(raw, "dataset")
     check_keys(ds, KEYS, source=r.source, where="dataset")
-    emulators = _names(r, ds, "dataset", "emulators", list(DatasetConfig.emulators), _one_of(EMULATORS, "emulator"))
+    emulators = _names(r, ds, "dataset", "emulators", list(DatasetConfig.emulators), _one_of(tuple(EMULATORS), "emulator"))
     render = r.table(ds, "render", "dataset.")
     check_render_overrides(render, r, "dataset.render")
     evreal = ds.get("evreal", False)

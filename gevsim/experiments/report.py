@@ -11,9 +11,8 @@ from pathlib import Path
 import numpy as np
 
 import gevsim
-from gevsim.emulation.config import EMULATORS
-
-COLORS = {"dvs": "tab:red", "gradient": "tab:blue", "gradient_rc": "tab:cyan", "csdvs": "tab:green"}
+from gevsim.emulation.emulators import EMULATORS
+from gevsim.evaluation.methods import METHODS
 
 
 def flat_rows(rows: list[dict]) -> list[dict]:
@@ -83,10 +82,10 @@ def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
         xs, numeric, labels = xvals(sel)
         for e in emulators:
             ys = np.maximum([row[f"{e}_flicker_per_pixel_s"] for row in sel], 1e-3)
-            ax.plot(xs, ys, "o-", color=COLORS[e], label=e)
+            ax.plot(xs, ys, "o-", color=EMULATORS[e].color, label=e)
             if f"{e}_render_floor_per_pixel_s" in sel[0]:
                 floor = np.maximum([row[f"{e}_render_floor_per_pixel_s"] for row in sel], 1e-3)
-                ax.plot(xs, floor, ":", color=COLORS[e], alpha=0.8, label=f"{e} render-noise floor")
+                ax.plot(xs, floor, ":", color=EMULATORS[e].color, alpha=0.8, label=f"{e} render-noise floor")
         ax.set_yscale("log")
         if numeric and log_x:
             ax.set_xscale("log")
@@ -146,8 +145,7 @@ def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
         made.append(("spectrum.png", "Spectrum of the DVS event rate; dotted lines at harmonics of the flicker."))
 
     # 4. Quality versus bandwidth, with the Pareto front.
-    stream_of = {m: ("gradient_rc" if m.endswith("_rc") else "gradient") if m.startswith(("dct", "sor")) else "dvs"
-                 for m in methods}
+    stream_of = {m: METHODS[m].emulator for m in methods}
     points = [(row[f"{stream_of[m]}_events_per_s"], row[f"{m}_ssim"], m) for row in rows for m in methods
               if f"{stream_of[m]}_events_per_s" in row]
     if points:
@@ -248,9 +246,8 @@ def findings(rows: list[dict]) -> list[str]:
     med = {e: float(np.median([r[f"{e}_flicker_per_pixel_s"] for r in rows]))
            for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]}
     if "dvs" in med and "gradient" in med:
-        out.append(f"Median flicker-induced rate: DVS {med['dvs']:.3g}, gradient {med['gradient']:.3g}"
-                   + (f", gradient RC {med['gradient_rc']:.3g}" if "gradient_rc" in med else "")
-                   + (f", CSDVS {med['csdvs']:.3g}" if "csdvs" in med else "") + " events per pixel per second.")
+        out.append("Median flicker-induced rate: " + ", ".join(f"{EMULATORS[e].label} {v:.3g}" for e, v in med.items())
+                   + " events per pixel per second.")
         flickering = [r for r in rows if r["dvs_flicker_per_pixel_s"] > 1.0]
         if flickering:
             ratio = np.median([r["dvs_flicker_per_pixel_s"] / max(r["gradient_flicker_per_pixel_s"], 1.0)
@@ -321,10 +318,6 @@ def write_study_outputs(out: str | Path, study, rows: list[dict]) -> Path:
     return out / "report.md"
 
 
-BEST = {"dvs": ("complementary", "direct", "high_pass"), "gradient": ("dct", "sor"), "gradient_rc": ("dct_rc", "sor_rc"),
-        "csdvs": ()}
-
-
 def comparison_table(rows: list[dict], study) -> str:
     """Per run and emulator: events/s, flicker-induced events per pixel per second and the best
     reconstruction's SSIM/MSE (the demo's table)."""
@@ -339,7 +332,8 @@ def comparison_table(rows: list[dict], study) -> str:
         for e in EMULATORS:
             if f"{e}_events_per_s" not in row:
                 continue
-            scored = [m for m in BEST[e] if f"{m}_ssim" in row and np.isfinite(row[f"{m}_ssim"])]
+            scored = [m for m, entry in METHODS.items()
+                      if entry.emulator == e and f"{m}_ssim" in row and np.isfinite(row[f"{m}_ssim"])]
             best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
             ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
             mse = f"{row[f'{best}_mse']:7.4f}" if best else f"{'-':>7s}"

@@ -61,8 +61,10 @@ import numpy as np
 
 import gevsim
 from gevsim.config import TomlReader, read_toml
-from gevsim.emulation.config import EMULATORS, STREAMS, EmulationConfig
+from gevsim.emulation.config import EmulationConfig
+from gevsim.emulation.emulators import EMULATORS, check_emulator
 from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.io import atomic_write_text
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
@@ -113,8 +115,10 @@ def load_study(path: str | Path) -> Study:
                                       "(a name, or a table scene = group)")
     emulators = st.get("emulators", list(EMULATORS))
     for e in emulators:
-        if e not in EMULATORS:
-            r.fail("study.emulators", f"unknown emulator {e!r}{suggest(str(e), EMULATORS)}")
+        try:
+            check_emulator(e)
+        except ValueError as exc:
+            r.fail("study.emulators", str(exc))
     sweep = r.table(raw, "sweep")
     check_keys(sweep, AXES, source=src, where="sweep")
     for axis, values in sweep.items():
@@ -134,15 +138,11 @@ def load_study(path: str | Path) -> Study:
         if (not isinstance(values, list) or not values
                 or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in values)):
             r.fail("sweep.thresholds_ln", f"expected lists of positive numbers (one threshold set each), got {values!r}")
-    from gevsim.evaluation.runner import BRIGHTNESS_METHODS, GRADIENT_METHODS
-
     for method in st.get("methods", ["dct", "direct"]):
-        base_method = method[:-3] if str(method).endswith("_rc") else method
-        known = base_method in GRADIENT_METHODS or (base_method == method and method in BRIGHTNESS_METHODS)
-        if not known:
-            names = list(GRADIENT_METHODS) + [m + "_rc" for m in GRADIENT_METHODS] + list(BRIGHTNESS_METHODS)
-            r.fail("study.methods", f"unknown method {method!r}{suggest(str(method), names)}")
-        needs = ("gradient_rc" if method.endswith("_rc") else "gradient") if base_method in GRADIENT_METHODS else "dvs"
+        try:
+            needs = check_method(method).emulator
+        except ValueError as exc:
+            r.fail("study.methods", str(exc))
         if needs not in emulators:
             r.fail("study.methods", f"method {method!r} needs the {needs!r} emulator in study.emulators")
     check_render_overrides(r.table(st, "render", "study."), r, "study.render")
@@ -202,7 +202,8 @@ def run_config(study: Study, params: dict) -> EmulationConfig:
         scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]), seed=b["seed"],
         duration_s=b["duration_s"], step_s=b["step_s"], chunk_steps=b["chunk_steps"],
         frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]),
-        aps="complementary" in b["methods"] and load_preset(params.get("sensor", b["sensor"])).aps is not None,
+        aps=(any(METHODS[m].needs_aps for m in b["methods"])
+             and load_preset(params.get("sensor", b["sensor"])).aps is not None),
         aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
         thresholds_ln=tuple(params.get("thresholds_ln", (0.05, 0.1, 0.2))),
         hysteresis_ln=float(params.get("hysteresis_ln", 0.0)),
@@ -269,7 +270,7 @@ def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> 
                 "render_se_ln": quality["se_ln"]["at_percentile"], "render_se_percentile": quality["percentile"],
                 "render_target_ln": quality["target_ln"], "render_target_reached": quality["reached"]})
     for emulator in study.base["emulators"]:
-        stream = STREAMS[emulator]
+        stream = EMULATORS[emulator].stream
         counts = {k: stats[k][stream]["count"] for k in variants}
         row[f"{emulator}_events_per_s"] = counts["run"] / duration
         row[f"{emulator}_event_probability"] = stats["run"][stream]["event_probability"]
@@ -281,11 +282,10 @@ def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> 
         row["flicker_rejection_ratio"] = row["dvs_flicker_per_pixel_s"] / max(row["gradient_flicker_per_pixel_s"],
                                                                               1.0 / (pixels * duration))
     for method in study.base["methods"]:
-        if method == "complementary" and not cfg.aps:  # the sensor has no APS: nothing to fuse
+        if METHODS[method].needs_aps and not cfg.aps:  # the sensor has no APS: nothing to fuse
             row.update({f"{method}_{k}": float("nan") for k in ("mse", "ssim", "psnr")})
             continue
-        base, rc = (method[:-3], True) if method.endswith("_rc") else (method, False)
-        rec, _, _ = reconstruct_file(folder / "run.h5", base, rc=rc, reference="no-flicker")
+        rec, _, _ = reconstruct_file(folder / "run.h5", method, reference="no-flicker")
         for k, v in rec.mean_metrics().items():
             row[f"{method}_{k}"] = v
     if "dvs" in study.base["emulators"]:

@@ -140,7 +140,7 @@ def test_sensor_axes_sweep_preset_parameters(tmp_path):
 
 
 @pytest.mark.parametrize("methods, text", [('["dct", "dirct"]', "did you mean 'direct'"),
-                                           ('["direct_rc"]', "unknown method 'direct_rc'"),
+                                           ('["direct_rc"]', "unknown reconstruction method 'direct_rc'"),
                                            ('["sor"]', "needs the 'gradient' emulator")])
 def test_study_methods_are_checked_before_any_work(tmp_path, capsys, methods, text):
     cfg = write_study(tmp_path)

@@ -1,0 +1,144 @@
+"""Registry of reconstruction methods: the one place that names them (full names such as ``dct_rc``).
+
+Each method reads one emulator's event stream from an emulation file and returns
+frames at the ground-truth times, before the level is set and the frames are scored
+(:func:`gevsim.evaluation.reconstruct_file`). Gradient methods (``dct``, ``sor`` and
+their ``_rc`` twins on the resolution-compressed stream) decode the gradient events
+from the stored initial ternary state up to each frame and solve the Poisson problem
+(Lehtonen et al.); brightness methods (``direct``, ``high_pass``, ``complementary``)
+integrate brightness events (Scheerlinck, Barnes & Mahony 2018).
+
+Adding a method is its algorithm in :mod:`gevsim.reconstruct` plus one entry in
+:data:`METHODS` (colour-science's ``*_METHODS`` pattern).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from gevsim.emulation import layout
+from gevsim.emulation.emulators import EMULATORS
+from gevsim.errors import ConfigError, suggest
+from gevsim.events import decode
+from gevsim.io import EventReader
+from gevsim.reconstruct import brightness
+from gevsim.reconstruct.gradient import GradientReconstructor
+
+__all__ = ["METHODS", "Method", "check_method"]
+
+#: Contrast step (ln) of a brightness event when the file stores no DVS thresholds (frame mode).
+DEFAULT_CONTRAST_LN = 0.2
+
+
+@dataclass(frozen=True)
+class Method:
+    """One registry entry.
+
+    Attributes
+    ----------
+    emulator : the emulator (:data:`~gevsim.emulation.emulators.EMULATORS`) whose stream it reads.
+    run : ``run(reader, gt, t_us, *, c, contrast, is_log)``: frames (M, H, W) at ``t_us``, in the
+        units of the ground truth ``gt`` (ln for scene mode, intensity for frame mode).
+    needs_aps : it fuses APS frames (the run must emulate them).
+    """
+
+    emulator: str
+    run: Callable[..., np.ndarray]
+    needs_aps: bool = False
+
+    @property
+    def stream(self) -> str:
+        return EMULATORS[self.emulator].stream
+
+
+def _stream(r: EventReader, emulator: str) -> str:
+    stream = EMULATORS[emulator].stream
+    if stream not in r.streams:
+        raise ConfigError(f"holds no {stream} stream (emulate with {emulator!r} among the emulators)",
+                          source=str(r.path))
+    return stream
+
+
+def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:
+    """Decode ``emulator``'s gradient events up to each frame and solve with ``solver``."""
+    def run(r: EventReader, gt, t_us, *, c, contrast, is_log) -> np.ndarray:
+        stream = _stream(r, emulator)
+        theta = r.array(layout.thresholds_key(emulator)).astype(np.float64)
+        state = r.array(layout.initial_state_key(emulator)).astype(np.int8)
+        reconstructor = GradientReconstructor(gt.shape[1:], theta, rc=rc, method=solver, c=c)
+        frames = np.empty_like(gt)
+        previous = None
+        for k, t in enumerate(t_us):
+            start = None if previous is None else previous + 1
+            events = r.read(stream, start, int(t) + 1)  # events in (previous frame, this frame]
+            state = decode(events, state)
+            frames[k] = reconstructor.frame(state)
+            previous = int(t)
+        return frames
+    return run
+
+
+def _contrast(r: EventReader, contrast: float | None) -> tuple[float, float]:
+    """ON/OFF contrast steps: given, else the DVS thresholds stored in the file, else the default."""
+    if contrast is not None:
+        return float(contrast), float(contrast)
+    try:
+        on, off = (float(v) for v in r.array(layout.thresholds_key("dvs")))
+    except (KeyError, ConfigError):
+        on = off = DEFAULT_CONTRAST_LN
+    return on, off
+
+
+def _brightness(integrate: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
+    """Integrate the DVS events up to the last frame with ``integrate(r, events, t_us, (h, w), on, off)``."""
+    def run(r: EventReader, gt, t_us, *, c, contrast, is_log) -> np.ndarray:
+        on, off = _contrast(r, contrast)
+        events = r.read(_stream(r, "dvs"), None, int(t_us[-1]) + 1)
+        frames = integrate(r, events, t_us, gt.shape[1:], on, off)
+        if not is_log:  # frame mode compares intensities
+            frames = np.exp(frames) - 1.0 / 255
+        return np.asarray(frames, np.float64)
+    return run
+
+
+def _direct(r, events, t_us, shape, on, off):  # events only: starts from a flat image, like the filters
+    h, w = shape
+    return brightness.direct_integration(events, t_us, width=w, height=h, contrast_on=on, contrast_off=off)
+
+
+def _high_pass(r, events, t_us, shape, on, off):
+    h, w = shape
+    return brightness.high_pass_filter(events, t_us, width=w, height=h, contrast=(on, off))
+
+
+def _complementary(r, events, t_us, shape, on, off):
+    h, w = shape
+    if layout.APS not in r.frame_names:
+        raise ConfigError("the complementary filter needs APS frames: emulate with aps = true", source=str(r.path))
+    aps, aps_t = r.frames(layout.APS)
+    offset = float(r.array_attrs(f"/frames/{layout.APS}").get("offset_dn", 0.0))
+    aps_log = np.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
+    return brightness.complementary_filter(events, aps_log, aps_t, t_us, width=w, height=h, contrast=(on, off))
+
+
+#: Reconstruction methods by their full name.
+METHODS: dict[str, Method] = {
+    "dct": Method("gradient", _poisson("dct", "gradient", rc=False)),
+    "sor": Method("gradient", _poisson("sor", "gradient", rc=False)),
+    "dct_rc": Method("gradient_rc", _poisson("dct", "gradient_rc", rc=True)),
+    "sor_rc": Method("gradient_rc", _poisson("sor", "gradient_rc", rc=True)),
+    "direct": Method("dvs", _brightness(_direct)),
+    "high_pass": Method("dvs", _brightness(_high_pass)),
+    "complementary": Method("dvs", _brightness(_complementary), needs_aps=True),
+}
+
+
+def check_method(name: str) -> Method:
+    """The registry entry of ``name``; ValueError with a did-you-mean for an unknown one."""
+    if not isinstance(name, str) or name not in METHODS:
+        raise ValueError(f"unknown reconstruction method {name!r}{suggest(str(name), METHODS)}; "
+                         f"choose from {', '.join(METHODS)}")
+    return METHODS[name]

@@ -1,0 +1,50 @@
+"""The registries of emulators and reconstruction methods: consistent, and errors that name the value."""
+
+import numpy as np
+import pytest
+
+from gevsim.emulation.emulators import (APS_READ_SEED, APS_SEED, EMULATORS, FRAME_EMULATORS, PHOTORECEPTOR_SEED,
+                                        SEED_SLOTS, STREAMS, check_emulator)
+from gevsim.evaluation.methods import METHODS, check_method
+
+
+def test_seed_slots_are_distinct_and_fixed():
+    slots = [e.seed_slot for e in EMULATORS.values()] + [PHOTORECEPTOR_SEED, APS_SEED, APS_READ_SEED]
+    assert sorted(slots) == list(range(SEED_SLOTS))
+    # The slots earlier runs were seeded with: changing one changes every run's events.
+    assert {n: e.seed_slot for n, e in EMULATORS.items()} == {"dvs": 1, "gradient": 2, "gradient_rc": 3, "csdvs": 4}
+
+
+def test_streams_are_distinct_and_frame_mode_runs_a_subset():
+    assert len(set(STREAMS.values())) == len(STREAMS)
+    assert STREAMS == {n: e.stream for n, e in EMULATORS.items()}
+    assert set(FRAME_EMULATORS) <= set(EMULATORS) and "csdvs" not in FRAME_EMULATORS
+
+
+def test_every_method_reads_a_registered_emulator():
+    for name, method in METHODS.items():
+        assert method.emulator in EMULATORS
+        assert method.stream == EMULATORS[method.emulator].stream
+    assert METHODS["dct_rc"].emulator == "gradient_rc" and METHODS["complementary"].needs_aps
+
+
+def test_unknown_names_are_named_with_a_suggestion():
+    with pytest.raises(ValueError, match="unknown emulator 'gradiant' \\(did you mean 'gradient'\\?\\)"):
+        check_emulator("gradiant")
+    with pytest.raises(ValueError, match="choose from dvs, gradient, gradient_rc$"):
+        check_emulator("csdvs", FRAME_EMULATORS)
+    with pytest.raises(ValueError, match="unknown reconstruction method 'dct_cr' \\(did you mean 'dct_rc'\\?\\)"):
+        check_method("dct_cr")
+    assert check_method("sor_rc") is METHODS["sor_rc"]
+
+
+def test_make_emulator_builds_from_config_and_preset():
+    from gevsim.emulation import EmulationConfig
+    from gevsim.emulation.emulators import make_emulator
+    from gevsim.pixel import load_preset
+
+    config = EmulationConfig(scene="office", thresholds_ln=(0.1, 0.2), hysteresis_ln=0.01)
+    em = make_emulator("gradient_rc", (4, 6), config=config, preset=load_preset("davis346"),
+                       rng=np.random.default_rng(0))
+    assert em.theta.shape[1:] == (4, 6)
+    assert EMULATORS["gradient_rc"].thresholds(em, None).dtype == np.float32
