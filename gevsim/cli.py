@@ -1,20 +1,38 @@
 """Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``, ``study``, ``dataset``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
-library. Bad input prints one line naming the file and key and exits with
-code 2, never a traceback.
+library. Bad input (:class:`~gevsim.errors.ConfigError`) and a missing optional
+extra (:class:`~gevsim.errors.MissingExtraError`) print one line naming the file
+and key and exit with code 2; anything else is a bug and shows its traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 import time
 
-from gevsim.errors import ConfigError
+from gevsim.errors import ConfigError, GevsimError
 
 log = logging.getLogger("gevsim")
+
+
+def _positive(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    value = float(text)
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return value
+
+
+def _non_negative(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    value = float(text)
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative number, got {text}")
+    return value
 
 
 def _progress(desc: str, enabled: bool, unit: str = "pose"):
@@ -60,8 +78,6 @@ def cmd_render(args) -> int:
     manifest = override(manifest, width=args.width, height=args.height, spp=args.spp, seed=args.seed,
                         noise_target_ln=args.noise_target, max_spp=args.max_spp, time_budget_s=args.time_budget,
                         denoise=args.denoise, duration_s=args.duration, source="command line")
-    if args.frames is not None and args.frames <= 0:
-        raise ConfigError(f"must be > 0, got {args.frames}", key="--frames")
     if args.plots and args.frames is None:
         raise ConfigError("--plots needs --frames RATE (the plots show the mixed sequence)", key="--plots")
     if args.plots:
@@ -232,8 +248,8 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="render a scene's light-group basis images (and an irradiance sequence)")
     r.add_argument("scene", help="a built-in scene name (see `gevsim scenes`) or a manifest .toml")
     r.add_argument("--out", required=True, help="output folder (replaced atomically)")
-    r.add_argument("--frames", type=float, metavar="RATE", help="also write the mixed irradiance at RATE frames/s")
-    r.add_argument("--exposure", type=float, metavar="S", help="average each frame over S seconds (default: instant)")
+    r.add_argument("--frames", type=_positive, metavar="RATE", help="also write the mixed irradiance at RATE frames/s")
+    r.add_argument("--exposure", type=_positive, metavar="S", help="average each frame over S seconds (default: instant)")
     r.add_argument("--plots", action="store_true", help="write contact_sheet.png and waveform.png (needs --frames)")
     r.add_argument("--cache", metavar="DIR", help="basis image cache (default $GEVSIM_CACHE or ~/.cache/gevsim)")
     r.add_argument("--width", type=int)
@@ -257,7 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--frames", metavar="DIR", help="frame mode: a folder of images (+ timestamps.txt or --fps)")
     e.add_argument("--evreal", metavar="DIR", help="frame mode: an EVREAL sequence folder")
     e.add_argument("--video", metavar="FILE", help="frame mode: a video file (needs imageio)")
-    e.add_argument("--fps", type=float, help="frame rate when the frames carry no timestamps")
+    e.add_argument("--fps", type=_positive, help="frame rate when the frames carry no timestamps")
     e.add_argument("--seed", type=int, default=0, help="frame mode: seed of the DVS threshold mismatch")
     e.add_argument("--no-flicker", action="store_true", help="replace every lamp waveform by its mean")
     e.add_argument("--no-noise", action="store_true", help="ideal pixel: no noise, no mismatch, no leak")
@@ -273,12 +289,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "direct, high_pass, complementary; repeat or comma-separate")
     c.add_argument("--out", required=True, help="output folder (replaced atomically)")
     c.add_argument("--mean", default="ground-truth", help="level: ground-truth (papers' protocol) or photodiode")
-    c.add_argument("--c", type=float, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")
-    c.add_argument("--contrast", type=float, help="contrast step of a brightness event (ln units; default: "
+    c.add_argument("--c", type=_positive, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")
+    c.add_argument("--contrast", type=_positive, help="contrast step of a brightness event (ln units; default: "
                                                    "the sensor's DVS thresholds stored in the file)")
     c.add_argument("--reference", default="flicker",
                    help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
-    c.add_argument("--bits-per-event", type=float, default=32.0, help="for the bandwidth column (default 32)")
+    c.add_argument("--bits-per-event", type=_non_negative, default=32.0, help="for the bandwidth column (default 32)")
     c.set_defaults(func=cmd_reconstruct)
 
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
@@ -311,12 +327,7 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()
         return 0
-    except ImportError as exc:  # an optional extra (plot, dask, video) is missing
-        if args.verbose:
-            raise
-        print(f"gevsim: error: {exc}", file=sys.stderr)
-        return 2
-    except (ConfigError, ValueError, TypeError, OSError) as exc:
+    except GevsimError as exc:  # bad input, or an optional extra (plot, dask, video) is missing
         if args.verbose:
             raise
         print(f"gevsim: error: {exc}", file=sys.stderr)

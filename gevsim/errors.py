@@ -1,7 +1,9 @@
 """Exceptions shared by every stage.
 
 Library code raises :class:`ConfigError` (a ``ValueError``) for bad user input
-so that the CLI can print one clear line and exit with code 2.
+and :class:`MissingExtraError` (an ``ImportError``) for an optional extra that is
+not installed. Both are :class:`GevsimError`: the CLI prints them as one clear
+line and exits with code 2; anything else is a bug and shows its traceback.
 """
 
 from __future__ import annotations
@@ -10,7 +12,15 @@ import difflib
 from collections.abc import Iterable
 
 
-class ConfigError(ValueError):
+class GevsimError(Exception):
+    """Base of gevsim's own errors: bad input or a missing extra, never a bug."""
+
+
+class MissingExtraError(GevsimError, ImportError):
+    """An optional extra is not installed; the message says what to install."""
+
+
+class ConfigError(GevsimError, ValueError):
     """Bad user input: names the file (``source``) and ``key`` it concerns."""
 
     def __init__(self, message: str, *, source: str | None = None, key: str | None = None):

@@ -9,14 +9,16 @@ import os
 
 import numpy as np
 
+from gevsim.errors import MissingExtraError
 from gevsim.io import atomic_path
+from gevsim.reconstruct.tonemap import ToneMap
 
 
 def _pyplot():
     try:
         import matplotlib
     except ImportError as exc:  # pragma: no cover - depends on the install
-        raise ImportError("plots need matplotlib: pip install 'gevsim[plot]'") from exc
+        raise MissingExtraError("plots need matplotlib: pip install 'gevsim[plot]'") from exc
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -32,23 +34,14 @@ def save_figure(fig, path: str | os.PathLike) -> None:
     plt.close(fig)
 
 
-def tone_map(irradiance: np.ndarray, *, low=None, high=None) -> np.ndarray:
-    """Log tone mapping to [0, 1]: ln(E) between the 1st and 99th percentiles
-    of the whole sequence (or ``low``/``high``), so frames share one scale."""
-    e = np.maximum(np.asarray(irradiance, np.float64), 1e-12)
-    log_e = np.log(e)
-    lo = np.percentile(log_e, 1) if low is None else np.log(low)
-    hi = np.percentile(log_e, 99) if high is None else np.log(high)
-    return np.clip((log_e - lo) / max(hi - lo, 1e-9), 0.0, 1.0)
-
-
 def contact_sheet(frames: np.ndarray, times_s, path: str | os.PathLike, *, title: str = "", max_frames: int = 12):
     """Grid of up to ``max_frames`` tone-mapped frames labelled with time and mean illuminance."""
     plt = _pyplot()
     from gevsim.optics import illuminance_lux, luminance
 
     idx = np.unique(np.linspace(0, len(frames) - 1, min(max_frames, len(frames))).round().astype(int))
-    shown = tone_map(frames)
+    log_e = np.log(np.maximum(np.asarray(frames, np.float64), 1e-12))
+    shown = ToneMap.from_ground_truth(log_e)(log_e)  # one scale for the whole sequence
     cols = min(4, len(idx))
     rows = int(np.ceil(len(idx) / cols))
     h, w = frames.shape[1:3]

@@ -3,8 +3,9 @@
 Frame-mode events (the DVS and gradient emulators on a synthetic frame
 sequence), the frame-mode HDF5 file, reconstructions of it, and a driver run
 on a fixed synthetic photocurrent (no rendering) are hashed with SHA-256. The
-hashes were computed once on the code before the refactors of issue 10 and
-are hard-coded: a change of any of them means the numbers changed, not just
+hashes were computed once on the code before the refactors of issue 10
+(commit 270cc79; the one-pose driver run was added later, its hash computed on
+a checkout of that commit) and are hard-coded: a change of any of them means the numbers changed, not just
 the code's shape. Rendered runs are not pinned (the renderer changes them).
 
 If a deliberate change of the physics moves a pin, recompute it with
@@ -44,6 +45,7 @@ PINS = {
     "reconstruct.sor_rc": "1ade5de9059d1a68bd34b6d8ca3a5cf9deb9f901e6e12016f2b629d67f5e7438",
     "reconstruct.direct": "9b9954e4f8dd922df266cd31a1316ae6e9d7f6f0afb7214b8ecdfa36ebff9e51",
     "reconstruct.high_pass": "4b8cc66aac24c4f19ab82f6346fe9fe554fd8b4e44fce055fc854e2c85a21196",
+    "driver_one_pose.h5": "97660d2e06325e77e9d304dce6ce2817cde2e212983e98f3fc26942793fade22",
     "driver.h5": "930f849a83470af6042bc8ed6ab6d75b1e9f6f31af38268a841a4aeae4b64f5d",
 }
 
@@ -90,20 +92,20 @@ def synthetic_frames() -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(frames, np.float64), np.arange(8) / 30.0
 
 
-def synthetic_setup() -> tuple[EmulationConfig, Setup]:
-    """A driver setup on a fixed photocurrent basis: two poses, two light groups (one PWM, one
-    sinusoid), 32x24 pixels, the davis346 sensor; no rendering."""
+def synthetic_setup(poses: int = 2) -> tuple[EmulationConfig, Setup]:
+    """A driver setup on a fixed photocurrent basis: two poses (or the first alone), two light
+    groups (one PWM, one sinusoid), 32x24 pixels, the davis346 sensor; no rendering."""
     manifest = load(DATA / "card.toml")
     h, w = manifest.render.height, manifest.render.width
     y, x = np.mgrid[0:h, 0:w]
     g0 = 2e-11 * (1.0 + 0.8 * (x > w // 2)) * (1.0 + 0.3 * np.sin(y / 3.0))
     g1 = 1e-11 * (1.0 + 0.5 * np.cos(x / 4.0 + y / 6.0))
-    basis = np.stack([np.stack([g0, g1]), np.stack([np.roll(g0, 2, axis=1), g1 * 1.1])])
+    basis = np.stack([np.stack([g0, g1]), np.stack([np.roll(g0, 2, axis=1), g1 * 1.1])])[:poses]
     waveforms = (from_spec({"type": "pwm", "frequency_hz": 500.0, "duty": 0.4}),
                  from_spec({"type": "sinusoid", "frequency_hz": 300.0, "modulation": 0.6}))
     config = EmulationConfig(scene=str(DATA / "card.toml"), sensor="davis346", seed=7, duration_s=0.004,
                              step_s=2e-5, chunk_steps=37, frame_rate_hz=1000.0, aps=True, aps_exposure_s=5e-4)
-    setup = Setup(manifest=manifest, preset=load_preset("davis346"), basis_times_s=np.array([0.0, 0.004]),
+    setup = Setup(manifest=manifest, preset=load_preset("davis346"), basis_times_s=np.array([0.0, 0.004])[:poses],
                   current_basis=basis.astype(np.float64), waveforms=waveforms, duration_s=0.004,
                   variant=types.SimpleNamespace(variant="none"), current_noise=None, render_quality={})
     return config, setup
@@ -129,6 +131,9 @@ def compute(tmp: Path) -> dict[str, str]:
     config, setup = synthetic_setup()
     run(config, tmp / "driver.h5", setup=setup)
     out["driver.h5"] = h5_digest(tmp / "driver.h5")
+    config, setup = synthetic_setup(poses=1)
+    run(config, tmp / "driver_one_pose.h5", setup=setup)
+    out["driver_one_pose.h5"] = h5_digest(tmp / "driver_one_pose.h5")
     return out
 
 

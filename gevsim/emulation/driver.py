@@ -23,7 +23,7 @@ from gevsim.emulation import layout
 from gevsim.emulation.config import EmulationConfig, check_consistency
 from gevsim.emulation.emulators import APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, SEED_SLOTS, make_emulator
 from gevsim.errors import ConfigError, suggest
-from gevsim.illumination import from_spec, weights_at
+from gevsim.illumination import from_spec, mix_poses, weights_at
 from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
@@ -131,26 +131,9 @@ def render_noise_floor(setup: Setup, *, frequency_hz: float) -> Setup:
 
 
 def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Photocurrent (T, H, W) for waveform weights (T, K) at times t_s.
-
-    Between two poses the basis blends linearly: I = (1 - a) w.C_i + a w.C_{i+1};
-    steps are grouped by pose interval so each group is two matrix products.
-    """
-    c, times = setup.current_basis, setup.basis_times_s
-    k, shape = c.shape[1], c.shape[2:]
-    if len(times) == 1:
-        return np.tensordot(weights, c[0], axes=1)
-    t_s = np.asarray(t_s, float)
-    i = np.clip(np.searchsorted(times, t_s, side="right") - 1, 0, len(times) - 2)
-    a = np.clip((t_s - times[i]) / (times[i + 1] - times[i]), 0.0, 1.0)
-    out = np.empty((len(t_s),) + shape)
-    for seg in np.unique(i):
-        rows = np.flatnonzero(i == seg)
-        w = weights[rows]
-        lo = ((1.0 - a[rows])[:, None] * w) @ c[seg].reshape(k, -1)
-        hi = (a[rows][:, None] * w) @ c[seg + 1].reshape(k, -1)
-        out[rows] = (lo + hi).reshape((len(rows),) + shape)
-    return out
+    """Photocurrent (T, H, W) for waveform weights (T, K) at times t_s: E(t) of
+    :func:`~gevsim.illumination.mix_poses` on the photocurrent basis."""
+    return mix_poses(setup.current_basis, setup.basis_times_s, t_s, weights)
 
 
 def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=True, noise=True,

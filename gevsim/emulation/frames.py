@@ -19,6 +19,7 @@ import numpy as np
 
 from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS, FRAME_EMULATORS, check_emulator
+from gevsim.errors import ConfigError
 from gevsim.events.gradient import PAPER_THRESHOLDS
 from gevsim.io import EventWriter
 from gevsim.pixel.params import EventParams
@@ -45,6 +46,13 @@ def _check_frames(frames, t_s) -> tuple[np.ndarray, np.ndarray]:
         k = int(bad[0]) + 1
         raise ValueError(f"t_s must increase strictly: frame {k} at {t[k]!r} s follows {t[k - 1]!r} s")
     return f.astype(np.float64, copy=False), t
+
+
+def _check_sizes(shape: tuple[int, ...], emulators) -> None:
+    for name in emulators:
+        if EMULATORS[name].even_size and (shape[0] % 2 or shape[1] % 2):
+            raise ValueError(f"{name} (resolution compression) needs even height and width, "
+                             f"got {shape[0]}x{shape[1]}")
 
 
 def emulate_frames(frames: np.ndarray, t_s: np.ndarray, *, emulators: Sequence[str] = FRAME_EMULATORS,
@@ -78,10 +86,7 @@ def emulate_frames(frames: np.ndarray, t_s: np.ndarray, *, emulators: Sequence[s
     entries = {name: check_emulator(name, FRAME_EMULATORS) for name in dict.fromkeys(names)}
     f, t = _check_frames(frames, t_s)
     shape = f.shape[1:]
-    for name, entry in entries.items():
-        if entry.even_size and (shape[0] % 2 or shape[1] % 2):
-            raise ValueError(f"{name} (resolution compression) needs even height and width, "
-                             f"got {shape[0]}x{shape[1]}")
+    _check_sizes(shape, entries)
     if not np.isfinite(log_eps) or log_eps <= 0:
         raise ValueError(f"log_eps must be a positive number, got {log_eps!r}")
     out = {}
@@ -98,8 +103,12 @@ def run_frames(frames: np.ndarray, t_s: np.ndarray, out: str | os.PathLike, *, s
 
     Returns ``{"width", "height", "frames", "duration_s", "counts"}`` (events per stream).
     """
+    try:  # users' frame files: bad ones are input errors, named by their source
+        frames, t_s = _check_frames(frames, t_s)
+        _check_sizes(frames.shape[1:], FRAME_EMULATORS)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(str(exc), source=None if source is None else str(source)) from None
     streams = emulate_frames(frames, t_s, rng=np.random.default_rng(seed))
-    frames, t_s = np.asarray(frames), np.asarray(t_s, dtype=np.float64)
     h, w = frames.shape[1:]
     config = f'# frame mode\nsource = "{source}"\nseed = {seed}\n'
     with EventWriter(out, width=w, height=h, config_toml=config, seed=seed,

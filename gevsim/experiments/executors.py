@@ -17,7 +17,7 @@ import multiprocessing
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 
-from gevsim.errors import ConfigError, suggest
+from gevsim.errors import ConfigError, MissingExtraError, suggest
 
 log = logging.getLogger(__name__)
 KINDS = ("local", "dask")
@@ -56,8 +56,7 @@ def make_executor(kind: str = "local", *, workers: int | None = None, scheduler:
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
-        raise ConfigError("the dask executor needs dask.distributed: pip install 'gevsim[dask]'",
-                          key="executor") from None
+        raise MissingExtraError("the dask executor needs dask.distributed: pip install 'gevsim[dask]'") from None
     with contextlib.ExitStack() as stack:
         if scheduler is not None:
             if workers is not None:

@@ -1,7 +1,10 @@
 """Mixing light-group basis images with lamp waveforms.
 
 Light transport is linear in emitter radiance, so the irradiance at time ``t``
-is ``E(t) = sum_k w_k(t) B_k`` over light groups ``k`` (DESIGN.md, point 1).
+is ``E(t) = sum_k w_k(t) B_k(pose(t))`` over light groups ``k`` (DESIGN.md,
+the pipeline), where ``B_k(pose(t))`` blends linearly between the two rendered
+poses around ``t``. :func:`mix_poses` is that formula, the one place it is
+written: the renderer's radiance and the driver's photocurrent both call it.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import numpy as np
 
 from .base import Waveform
 
-__all__ = ["mix", "weights_at"]
+__all__ = ["mix", "mix_poses", "weights_at"]
 
 
 def mix(basis: Any, weights: Any) -> np.ndarray:
@@ -46,6 +49,56 @@ def mix(basis: Any, weights: Any) -> np.ndarray:
     if not np.all(np.isfinite(w)):
         raise ValueError(f"weights must be finite, got {w!r}")
     return np.tensordot(w.astype(dtype), b, axes=([-1], [0]))
+
+
+def mix_poses(basis: Any, basis_times_s: Any, t_s: Any, weights: Any) -> np.ndarray:
+    """``E(t) = sum_k w_k(t) B_k(pose(t))`` at times ``t_s``, blending the poses around each time.
+
+    Between poses ``i`` and ``i + 1``, ``E = (1 - a) w.B_i + a w.B_{i+1}`` with
+    ``a = (t - t_i) / (t_{i+1} - t_i)``; before the first pose and after the last the end
+    pose holds. Times are grouped by pose interval, so each group is two matrix products.
+
+    Parameters
+    ----------
+    basis : array, shape (P, K, H, W) or (P, K, H, W, C)
+        One image per pose and light group.
+    basis_times_s : array, shape (P,)
+        Pose times, increasing.
+    t_s : array, shape (T,)
+        Times of the result.
+    weights : array, shape (T, K)
+        Waveform values (or averages) per time and light group (:func:`weights_at`).
+
+    Returns
+    -------
+    ndarray, shape (T, H, W[, C])
+        float32 if ``basis`` is float32, else float64.
+    """
+    b = np.asarray(basis)
+    times = np.asarray(basis_times_s, dtype=np.float64)
+    if b.ndim not in (4, 5):
+        raise ValueError(f"basis must have shape (P, K, H, W) or (P, K, H, W, C), got {b.shape}")
+    if times.shape != b.shape[:1]:
+        raise ValueError(f"basis_times_s must have shape ({b.shape[0]},) to match the basis, got {times.shape}")
+    if len(times) == 1:
+        return mix(b[0], weights)
+    dtype = np.float32 if b.dtype == np.float32 else np.float64
+    w = np.asarray(weights, dtype=np.float64)
+    t = np.asarray(t_s, dtype=np.float64)
+    k, shape = b.shape[1], b.shape[2:]
+    if w.shape != (len(t), k):
+        raise ValueError(f"weights must have shape ({len(t)}, {k}) for {len(t)} times and {k} light groups, "
+                         f"got {w.shape}")
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
+    a = np.clip((t - times[i]) / (times[i + 1] - times[i]), 0.0, 1.0)
+    out = np.empty((len(t),) + shape, dtype)
+    for seg in np.unique(i):
+        rows = np.flatnonzero(i == seg)
+        wr = w[rows]
+        lo = ((1.0 - a[rows])[:, None] * wr).astype(dtype, copy=False) @ b[seg].reshape(k, -1)
+        hi = (a[rows][:, None] * wr).astype(dtype, copy=False) @ b[seg + 1].reshape(k, -1)
+        out[rows] = (lo + hi).reshape((len(rows),) + shape)
+    return out
 
 
 def weights_at(waveforms: Sequence[Waveform], t_s: Any, *, average_over_s: Any = None) -> np.ndarray:

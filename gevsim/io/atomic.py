@@ -38,15 +38,18 @@ class Staged:
     def __init__(self, target: str | os.PathLike, *, folder: bool = False, suffix: str | None = None):
         self.target = Path(target)
         self.folder = folder
-        self.target.parent.mkdir(parents=True, exist_ok=True)
         prefix = f".{self.target.name}."
         suffix = suffix or (".tmp" if folder else self.target.suffix or ".tmp")
-        if folder:
-            self.path = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=self.target.parent))
-        else:
-            fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=self.target.parent)
-            os.close(fd)
-            self.path = Path(tmp)
+        try:
+            self.target.parent.mkdir(parents=True, exist_ok=True)
+            if folder:
+                self.path = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=self.target.parent))
+            else:
+                fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=self.target.parent)
+                os.close(fd)
+                self.path = Path(tmp)
+        except OSError as exc:  # where the user asked for output: an input error, not a bug
+            raise ConfigError(f"cannot write here ({exc.strerror or exc})", source=str(self.target)) from None
 
     def commit(self) -> None:
         """Rename the stage onto the target; a folder target is swapped (restored if that fails)."""

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gevsim.errors import ConfigError
+from gevsim.errors import ConfigError, MissingExtraError
 from gevsim.io.evreal import import_evreal
 
 log = logging.getLogger(__name__)
@@ -144,7 +144,7 @@ def load_video(path, *, fps: float | None = None) -> tuple[np.ndarray, np.ndarra
     try:
         import imageio.v3 as iio
     except ImportError:
-        raise ImportError("load_video needs imageio: pip install 'imageio[pyav]'") from None
+        raise MissingExtraError("load_video needs imageio: pip install 'imageio[pyav]'") from None
     path = Path(path)
     if not path.is_file():
         raise ConfigError("no such file", source=str(path))

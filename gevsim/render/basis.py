@@ -288,13 +288,13 @@ class BasisSet:
         With ``flicker=False`` every waveform is replaced by its mean (the
         counterfactual run of DESIGN.md).
         """
+        from gevsim.illumination import mix_poses
+
         waves = self.waveforms if flicker else tuple(w.constant() for w in self.waveforms)
-        w = weights_at(waves, np.asarray(times_s, float), average_over_s=exposure_s)
-        out = np.empty((len(w),) + self.shape, np.float32)
-        for i, t in enumerate(times_s):
-            centre = t + 0.5 * exposure_s if exposure_s else t
-            out[i] = np.tensordot(w[i].astype(np.float32), self.pose_blend(centre), axes=1)
-        return out
+        t = np.asarray(times_s, float)
+        w = weights_at(waves, t, average_over_s=exposure_s)
+        centre = t + 0.5 * exposure_s if exposure_s else t  # the pose of an exposure is its middle's
+        return mix_poses(self.images, self.times_s, centre, w).astype(np.float32, copy=False)
 
 
 def render_basis(

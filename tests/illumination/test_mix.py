@@ -85,3 +85,24 @@ def test_weights_at_rejects_bad_input():
         weights_at([DC()], [0.0], average_over_s=0.0)
     with pytest.raises(ValueError, match="average_over_s"):
         weights_at([DC()], [0.0, 1.0], average_over_s=[1.0, 2.0, 3.0])
+
+
+def test_mix_poses_blends_the_poses_around_each_time():
+    from gevsim.illumination import mix_poses
+
+    rng = np.random.default_rng(3)
+    basis = rng.random((3, 2, 4, 5))  # poses at 0, 1, 3 s; two light groups
+    times = np.array([0.0, 1.0, 3.0])
+    t = np.array([-1.0, 0.0, 0.25, 2.0, 3.0, 9.0])
+    w = rng.random((len(t), 2))
+    got = mix_poses(basis, times, t, w)
+    pose = [basis[0], basis[0], 0.75 * basis[0] + 0.25 * basis[1], 0.5 * basis[1] + 0.5 * basis[2], basis[2],
+            basis[2]]  # the end poses hold outside
+    expect = np.stack([np.tensordot(w[i], pose[i], axes=1) for i in range(len(t))])
+    np.testing.assert_allclose(got, expect, rtol=1e-12)
+    np.testing.assert_array_equal(mix_poses(basis[:1], times[:1], t, w), mix(basis[0], w))
+    assert mix_poses(basis.astype(np.float32), times, t, w).dtype == np.float32
+    with pytest.raises(ValueError, match="weights must have shape \\(6, 2\\)"):
+        mix_poses(basis, times, t, w[:, :1])
+    with pytest.raises(ValueError, match="basis_times_s must have shape \\(3,\\)"):
+        mix_poses(basis, times[:2], t, w)
