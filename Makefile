@@ -5,7 +5,7 @@
 #               center-surround events in the office and on the sodium-lit street, with
 #               flicker/noise counterfactuals and reconstructions; table + report in
 #               out/demo_study (report.md)
-#   make test   runs the test suite
+#   make test   runs the test suite, ruff included (tests/test_lint.py)
 # Both bootstrap .venv, the package with its extras, and the LLVM runtime that
 # Mitsuba's fast CPU variant needs (apt-get, when run as root). Re-running
 # either redoes nothing that is finished.

@@ -51,7 +51,7 @@ def _progress(desc: str, enabled: bool, unit: str = "pose"):
     return update, bar.close
 
 
-def cmd_info(args) -> int:
+def cmd_info(args: argparse.Namespace) -> int:
     from gevsim.render.backend import describe
 
     for key, value in describe().items():
@@ -59,7 +59,7 @@ def cmd_info(args) -> int:
     return 0
 
 
-def cmd_scenes(args) -> int:
+def cmd_scenes(args: argparse.Namespace) -> int:
     from gevsim.render import builtin_scenes, load
 
     for name, path in builtin_scenes().items():
@@ -70,7 +70,7 @@ def cmd_scenes(args) -> int:
     return 0
 
 
-def cmd_render(args) -> int:
+def cmd_render(args: argparse.Namespace) -> int:
     from gevsim.render import MitsubaScene, load, override, render_basis
     from gevsim.render.output import write_render
 
@@ -112,7 +112,7 @@ def cmd_render(args) -> int:
     return 0
 
 
-def cmd_emulate(args) -> int:
+def cmd_emulate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     if sum(x is not None for x in (args.config, args.frames, args.evreal, args.video)) != 1:
@@ -148,7 +148,7 @@ def cmd_emulate(args) -> int:
     return 0
 
 
-def _emulate_frames(args) -> int:
+def _emulate_frames(args: argparse.Namespace) -> int:
     from gevsim.emulation import run_frames
     from gevsim.io import frames as loaders
 
@@ -170,7 +170,7 @@ def _emulate_frames(args) -> int:
     return 0
 
 
-def cmd_reconstruct(args) -> int:
+def cmd_reconstruct(args: argparse.Namespace) -> int:
     from gevsim.evaluation import reconstruct_file, write_reconstructions
 
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
@@ -193,7 +193,7 @@ def cmd_reconstruct(args) -> int:
     return 0
 
 
-def cmd_study(args) -> int:
+def cmd_study(args: argparse.Namespace) -> int:
     from gevsim.experiments.report import comparison_table, write_study_outputs
     from gevsim.experiments.study import check_study_scenes, load_study, run_study
 
@@ -210,7 +210,7 @@ def cmd_study(args) -> int:
     return 0
 
 
-def cmd_dataset(args) -> int:
+def cmd_dataset(args: argparse.Namespace) -> int:
     from gevsim.experiments.dataset import generate, load_dataset_config
     from gevsim.experiments.executors import make_executor
 
@@ -249,7 +249,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scene", help="a built-in scene name (see `gevsim scenes`) or a manifest .toml")
     r.add_argument("--out", required=True, help="output folder (replaced atomically)")
     r.add_argument("--frames", type=_positive, metavar="RATE", help="also write the mixed irradiance at RATE frames/s")
-    r.add_argument("--exposure", type=_positive, metavar="S", help="average each frame over S seconds (default: instant)")
+    r.add_argument("--exposure", type=_positive, metavar="S",
+                   help="average each frame over S seconds (default: instant)")
     r.add_argument("--plots", action="store_true", help="write contact_sheet.png and waveform.png (needs --frames)")
     r.add_argument("--cache", metavar="DIR", help="basis image cache (default $GEVSIM_CACHE or ~/.cache/gevsim)")
     r.add_argument("--width", type=int)

@@ -6,12 +6,19 @@ Needs the ``plot`` extra (matplotlib); uses the non-interactive Agg backend.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gevsim.errors import MissingExtraError
 from gevsim.io import atomic_path
 from gevsim.reconstruct.tonemap import ToneMap
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from gevsim.render.basis import BasisSet
 
 
 def _pyplot():
@@ -25,7 +32,7 @@ def _pyplot():
     return plt
 
 
-def save_figure(fig, path: str | os.PathLike) -> None:
+def save_figure(fig: Figure, path: str | os.PathLike) -> None:
     """Write a figure as a PNG atomically (temporary name, then rename) and close it."""
     import matplotlib.pyplot as plt
 
@@ -34,7 +41,8 @@ def save_figure(fig, path: str | os.PathLike) -> None:
     plt.close(fig)
 
 
-def contact_sheet(frames: np.ndarray, times_s, path: str | os.PathLike, *, title: str = "", max_frames: int = 12):
+def contact_sheet(frames: np.ndarray, times_s: Sequence[float], path: str | os.PathLike, *, title: str = "",
+                  max_frames: int = 12) -> None:
     """Grid of up to ``max_frames`` tone-mapped frames labelled with time and mean illuminance."""
     plt = _pyplot()
     from gevsim.optics import illuminance_lux, luminance
@@ -58,7 +66,8 @@ def contact_sheet(frames: np.ndarray, times_s, path: str | os.PathLike, *, title
     save_figure(fig, path)
 
 
-def waveform_plot(basis, times_s, mean_lux, path: str | os.PathLike, *, title: str = ""):
+def waveform_plot(basis: BasisSet, times_s: Sequence[float], mean_lux: Sequence[float], path: str | os.PathLike, *,
+                  title: str = "") -> None:
     """Lamp waveforms (top) and mean focal-plane illuminance of the frames (bottom)."""
     plt = _pyplot()
     t_end = max(float(times_s[-1]) if len(times_s) else 0.0, 1e-6)

@@ -23,12 +23,11 @@ import numpy as np
 import pytest
 
 from gevsim.cli import main
-from gevsim.emulation import EmulationConfig, run
+from gevsim.emulation import EmulationConfig, emulate_frames, run
 from gevsim.emulation.driver import Setup
-from gevsim.emulation import emulate_frames
+from gevsim.evaluation import reconstruct_file
 from gevsim.illumination import from_spec
 from gevsim.pixel import load_preset
-from gevsim.evaluation import reconstruct_file
 from gevsim.render import load
 
 DATA = Path(__file__).parent / "data"

@@ -2,8 +2,8 @@
 sequence to events (frame mode)."""
 
 from gevsim.emulation.config import EmulationConfig, load_config
-from gevsim.emulation.emulators import EMULATORS, STREAMS
 from gevsim.emulation.driver import prepare, run
+from gevsim.emulation.emulators import EMULATORS, STREAMS
 from gevsim.emulation.frames import emulate_frames, run_frames
 
 __all__ = ["EMULATORS", "STREAMS", "EmulationConfig", "emulate_frames", "load_config", "prepare", "run",

@@ -13,8 +13,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import os
 import time
-from pathlib import Path
+from collections.abc import Callable
 
 import numpy as np
 from scipy.constants import elementary_charge
@@ -32,6 +33,8 @@ from gevsim.render import MitsubaScene, load, override, render_basis
 from gevsim.render.scene_config import resolved_config, scene_optics
 
 log = logging.getLogger(__name__)
+#: ``progress(done, total)``, called as work completes.
+Progress = Callable[[int, int], None]
 DEFAULT_SPECTRUM = "D65"  # for light groups given as RGB radiance without a lamp spectrum
 
 
@@ -50,7 +53,8 @@ class Setup:
     render_quality: dict = dataclasses.field(default_factory=dict)  # achieved render noise (summarize_quality)
 
 
-def prepare(config: EmulationConfig, *, cache_dir=None, progress=None) -> Setup:
+def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = None,
+            progress: Progress | None = None) -> Setup:
     """Render (or load) the basis, and build the photocurrent basis and the sensor. The
     counterfactual variants of a run share it (:func:`counterfactual`)."""
     manifest = override(load(config.scene), **{k: v for k, v in config.render.items()})
@@ -136,8 +140,9 @@ def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.nd
     return mix_poses(setup.current_basis, setup.basis_times_s, t_s, weights)
 
 
-def run(config: EmulationConfig, out: str | Path, *, cache_dir=None, flicker=True, noise=True,
-        progress=None, render_progress=None, setup: Setup | None = None) -> dict:
+def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
+        flicker: bool = True, noise: bool = True, progress: Progress | None = None,
+        render_progress: Progress | None = None, setup: Setup | None = None) -> dict:
     """Run an emulation and write ``out`` (HDF5). Returns a summary (counts, rates, timings).
 
     ``setup`` (from :func:`prepare` with the same config) skips loading the basis again.

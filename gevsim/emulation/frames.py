@@ -90,7 +90,7 @@ def emulate_frames(frames: np.ndarray, t_s: np.ndarray, *, emulators: Sequence[s
     if not np.isfinite(log_eps) or log_eps <= 0:
         raise ValueError(f"log_eps must be a positive number, got {log_eps!r}")
     out = {}
-    for name, entry in entries.items():
+    for entry in entries.values():
         emu = entry.build_frames(shape, thresholds=thresholds, dvs_params=dvs_params, rng=rng)
         out[entry.stream] = emu.process(np.log(f + log_eps) if entry.log_input else f, t)
     return out

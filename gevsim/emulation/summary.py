@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
+from gevsim.emulation import layout
 from gevsim.events.statistics import event_probability, event_rates
 from gevsim.io import EventReader
 
@@ -11,7 +14,7 @@ BATCH_FRAMES = 64
 WINDOW_US = 100_000  # events counted 0.1 s at a time
 
 
-def summarize(path, *, frames: str = "log_photocurrent") -> dict:
+def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT) -> dict:
     """Per stream: event count, rates (total, per polarity/axis, per pixel) and the mean
     event probability per ground-truth frame interval as Lehtonen et al. count it."""
     out = {}

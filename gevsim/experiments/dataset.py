@@ -29,9 +29,11 @@ import concurrent.futures as cf
 import functools
 import json
 import math
+import os
 import shutil
 import time
 import tomllib
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -217,7 +219,7 @@ def _paths(out_dir, index: int) -> tuple[Path, Path, Path]:
     return out / "shards" / f"{name}.json", out / "shards" / f"{name}.h5", out / "evreal" / name
 
 
-def finished(config: DatasetConfig, out_dir, index: int) -> dict | None:
+def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int) -> dict | None:
     """The done-marker of sequence ``index`` if it is finished for this config, else None."""
     marker, shard, evreal = _paths(out_dir, index)
     try:
@@ -273,8 +275,9 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     return {"index": index, "status": "done", "counts": summary["counts"], "seconds": seconds}
 
 
-def generate(config: DatasetConfig, out_dir, *, executor: cf.Executor | None = None, indices=None,
-             cache_dir=None, progress=None) -> dict:
+def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.Executor | None = None,
+             indices: Iterable[int] | None = None, cache_dir: str | os.PathLike | None = None,
+             progress: Callable[[int, int], None] | None = None) -> dict:
     """Make the sequences ``indices`` (default: all) that are not finished, then ``dataset.json``.
 
     ``executor`` None runs them here, one after another; ``progress(done, total)``

@@ -13,6 +13,7 @@ import numpy as np
 import gevsim
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.evaluation.methods import METHODS
+from gevsim.experiments.study import Study
 
 
 def flat_rows(rows: list[dict]) -> list[dict]:
@@ -39,7 +40,7 @@ def _axis_values(rows, key):
     return [row.get(key) for row in rows]
 
 
-def plots(folder: Path, study, rows: list[dict]) -> list[tuple[str, str]]:
+def plots(folder: Path, study: Study, rows: list[dict]) -> list[tuple[str, str]]:
     """Write the PNG plots; returns (file, caption) pairs for the report."""
     from gevsim.plots import _pyplot, save_figure
 
@@ -177,7 +178,7 @@ def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]
     return front
 
 
-def key_table(rows: list[dict], study) -> str:
+def key_table(rows: list[dict], study: Study) -> str:
     """Markdown table: the sweep parameters and the headline numbers of every run."""
     emulators = [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
     methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
@@ -281,7 +282,7 @@ def findings(rows: list[dict]) -> list[str]:
     return out
 
 
-def write_report(folder: Path, study, rows: list[dict], made: list) -> None:
+def write_report(folder: Path, study: Study, rows: list[dict], made: list) -> None:
     parts = [f"# Study: {study.name}", "", study.description, "",
              f"gevsim {gevsim.__version__}; {len(rows)} runs; config in `config.toml`, every number in "
              "`results.csv` / `results.json`.", "", "## Findings", ""]
@@ -298,7 +299,7 @@ def write_report(folder: Path, study, rows: list[dict], made: list) -> None:
     (folder / "report.md").write_text("\n".join(parts))
 
 
-def write_study_outputs(out: str | Path, study, rows: list[dict]) -> Path:
+def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path:
     """results.csv/json, plots, report.md and config.toml, staged then moved in next to ``runs/``."""
     import os
     import shutil
@@ -318,7 +319,7 @@ def write_study_outputs(out: str | Path, study, rows: list[dict]) -> Path:
     return out / "report.md"
 
 
-def comparison_table(rows: list[dict], study) -> str:
+def comparison_table(rows: list[dict], study: Study) -> str:
     """Per run and emulator: events/s, flicker-induced events per pixel per second and the best
     reconstruction's SSIM/MSE (the demo's table)."""
     lines = []

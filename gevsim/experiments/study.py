@@ -53,8 +53,10 @@ import hashlib
 import itertools
 import json
 import math
+import os
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -232,7 +234,8 @@ def run_id(study: Study, params: dict) -> str:
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
-def event_rate_spectrum(events: np.ndarray, duration_s: float, *, bin_s: float = 1e-4):
+def event_rate_spectrum(events: np.ndarray, duration_s: float, *,
+                        bin_s: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
     """Amplitude spectrum of the event rate (events/s per Hz bin), for the harmonics plot."""
     counts, _ = np.histogram(events["t"] * 1e-6, bins=max(2, int(round(duration_s / bin_s))), range=(0, duration_s))
     rate = counts / bin_s
@@ -240,7 +243,7 @@ def event_rate_spectrum(events: np.ndarray, duration_s: float, *, bin_s: float =
     return np.fft.rfftfreq(len(rate), bin_s), amp
 
 
-def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> dict:
+def execute_run(study: Study, params: dict, folder: Path, *, cache_dir: str | os.PathLike | None = None) -> dict:
     """Emulate a run and its counterfactuals, score reconstructions; return the result row."""
     from gevsim.emulation import prepare, run
     from gevsim.emulation.driver import render_noise_floor
@@ -299,7 +302,8 @@ def execute_run(study: Study, params: dict, folder: Path, *, cache_dir=None) -> 
     return row
 
 
-def run_study(study: Study, out: str | Path, *, cache_dir=None, progress=None, keep_files: bool = False) -> list:
+def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
+              progress: Callable[[int, int], None] | None = None, keep_files: bool = False) -> list[dict]:
     """Run (or resume) every run of a study into ``out``; returns the result rows in sweep order."""
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)

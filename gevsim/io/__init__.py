@@ -3,8 +3,8 @@ atomic writes."""
 
 from gevsim.io.atomic import MANIFEST, Staged, atomic_dir, atomic_path, atomic_write_text
 from gevsim.io.evreal import export_evreal, import_evreal
-from gevsim.io.frames import load_evreal_frames, load_frame_folder, load_video
 from gevsim.io.exr import read_exr, read_exr_layers, write_exr, write_exr_layers
+from gevsim.io.frames import load_evreal_frames, load_frame_folder, load_video
 from gevsim.io.hdf5 import EventReader, EventWriter
 from gevsim.io.text import export_text, import_text
 

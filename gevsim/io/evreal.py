@@ -30,6 +30,7 @@ three must be present or all absent.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -58,8 +59,9 @@ def _to_uint8(images: np.ndarray) -> np.ndarray:
     return np.rint(np.clip(images, 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
-def export_evreal(folder, events: np.ndarray, images: np.ndarray | None, images_t_us: np.ndarray | None, *,
-                  width: int, height: int, extra_metadata: dict | None = None) -> Path:
+def export_evreal(folder: str | os.PathLike, events: np.ndarray, images: np.ndarray | None,
+                  images_t_us: np.ndarray | None, *, width: int, height: int,
+                  extra_metadata: dict | None = None) -> Path:
     """Write an EVREAL sequence folder (atomically: staged, then renamed).
 
     Parameters
@@ -132,7 +134,7 @@ def _column(arr: np.ndarray, path: Path, what: str, n: int | None = None) -> np.
     return arr
 
 
-def import_evreal(folder) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, int, int]:
+def import_evreal(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, int, int]:
     """Read an EVREAL sequence folder.
 
     Returns

@@ -5,6 +5,7 @@ folders read into (N, H, W) float64 gray frames in [0, 1] and times in seconds
 from __future__ import annotations
 
 import logging
+import os
 import re
 from pathlib import Path
 
@@ -92,7 +93,7 @@ def _read_timestamps(path: Path) -> np.ndarray:
     return np.asarray(values, dtype=np.float64)
 
 
-def load_frame_folder(folder, *, fps: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def load_frame_folder(folder: str | os.PathLike, *, fps: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Read the PNG/JPEG/TIFF frames of a folder, in natural name order (frame2 before frame10).
 
     Timestamps come from ``timestamps.txt`` in the folder: one time in seconds per line,
@@ -137,7 +138,7 @@ def load_frame_folder(folder, *, fps: float | None = None) -> tuple[np.ndarray, 
     return np.stack(frames), t
 
 
-def load_video(path, *, fps: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def load_video(path: str | os.PathLike, *, fps: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Read a video (any format imageio can read; MP4/AVI need its pyav or ffmpeg plugin)
     into grayscale frames in [0, 1] and times ``k / fps``, with ``fps`` taken from the
     video's metadata unless given."""
@@ -166,7 +167,7 @@ def load_video(path, *, fps: float | None = None) -> tuple[np.ndarray, np.ndarra
     return frames, _fps_times(float(fps), len(frames), source=str(path))
 
 
-def load_evreal_frames(folder) -> tuple[np.ndarray, np.ndarray]:
+def load_evreal_frames(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """The ground-truth frames of an EVREAL sequence folder: (images / 255, images_ts in s)."""
     _, images, images_t_us, _, _ = import_evreal(folder)
     if images is None or len(images) == 0:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 from pathlib import Path
 
 import h5py
@@ -79,7 +80,7 @@ class EventWriter:
         More root attributes.
     """
 
-    def __init__(self, path, *, width: int, height: int, config_toml: str, seed: int,
+    def __init__(self, path: str | os.PathLike, *, width: int, height: int, config_toml: str, seed: int,
                  compression: str = "gzip", extra_attrs: dict | None = None):
         if compression not in ("gzip", "lzf"):
             raise ValueError(f"compression must be 'gzip' or 'lzf', got {compression!r}")
@@ -193,7 +194,7 @@ class EventWriter:
         t.resize((n + 1,))
         images[n], t[n] = image, int(t_us)
 
-    def write_array(self, path_in_file: str, array, attrs: dict | None = None) -> None:
+    def write_array(self, path_in_file: str, array: np.ndarray, attrs: dict | None = None) -> None:
         """Store ``array`` as a dataset at ``path_in_file`` (e.g. ``"thresholds/on"``)."""
         self._check_open()
         if path_in_file in self._file:
@@ -203,7 +204,7 @@ class EventWriter:
         self._file.create_dataset(path_in_file, data=array, **opts)
         self.set_attrs(path_in_file, **(attrs or {}))
 
-    def set_attrs(self, group_path: str, **attrs) -> None:
+    def set_attrs(self, group_path: str, **attrs: object) -> None:
         """Set attributes on a group (created if missing) or an existing dataset."""
         self._check_open()
         obj = self._file[group_path] if group_path in self._file else self._file.require_group(group_path)
@@ -257,7 +258,7 @@ class EventReader:
         If ``path`` is missing, not HDF5, not a gevsim file or incomplete.
     """
 
-    def __init__(self, path):
+    def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
         src = str(self.path)
         if not self.path.is_file():

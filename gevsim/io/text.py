@@ -7,6 +7,7 @@ The first line is a ``#`` comment naming the columns.
 
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 
@@ -20,7 +21,7 @@ from gevsim.io.atomic import atomic_path
 _ROWS = 2**16  # lines formatted per write
 
 
-def export_text(path, events: np.ndarray) -> Path:
+def export_text(path: str | os.PathLike, events: np.ndarray) -> Path:
     """Write ``events`` (brightness or gradient) to a text file, atomically."""
     check_events(events)
     gradient = is_gradient(events)
@@ -39,7 +40,7 @@ def export_text(path, events: np.ndarray) -> Path:
     return Path(path)
 
 
-def import_text(path) -> np.ndarray:
+def import_text(path: str | os.PathLike) -> np.ndarray:
     """Read a file written by :func:`export_text` (4 or 5 columns)."""
     path = Path(path)
     src = str(path)

@@ -113,7 +113,8 @@ class PhaseLocked:
     """Phase-locked modulation of an event stream's rate (ev/px/s)."""
 
     rms: Interval  # RMS over the lamp period of the rate modulation in the first harmonics
-    harmonics: np.ndarray  # (M,) complex coefficients c_m of the rate, ev/px/s (r = mean + sum 2 Re c_m e^{2 pi i m phi})
+    # (M,) complex coefficients c_m of the rate, ev/px/s (r = mean + sum 2 Re c_m e^{2 pi i m phi})
+    harmonics: np.ndarray
     mean_rate: float  # ev/px/s
     p_value: float  # against the phase-randomised null (no locking)
     events: int

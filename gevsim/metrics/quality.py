@@ -100,8 +100,8 @@ def lpips(pred, gt) -> float | None:
     if not lpips_available():
         return None
     global _LPIPS_NET
-    import torch  # noqa: PLC0415
     import lpips as _lp  # noqa: PLC0415
+    import torch  # noqa: PLC0415
 
     if _LPIPS_NET is None:
         _LPIPS_NET = _lp.LPIPS(net="alex", version="0.1", verbose=False).eval()

@@ -2,8 +2,9 @@
 
 Noise comes from a counter-based generator: a 32-bit integer hash of
 (key, global step, block, pixel, stream) mapped to a standard normal by
-inversion (Acklam's rational approximation of the inverse normal CDF). The loops are written branch-free with vectorisable log and
-exp (:mod:`gevsim.pixel._fastmath`) so that they run on SIMD vectors. A draw depends only on its counter, so results are
+inversion (Acklam's rational approximation of the inverse normal CDF). The loops are
+written branch-free with vectorisable log and exp (:mod:`gevsim.pixel._fastmath`) so
+that they run on SIMD vectors. A draw depends only on its counter, so results are
 identical for any chunking of time and any number of threads, bit for bit.
 """
 
@@ -13,6 +14,7 @@ import math
 
 import numpy as np
 from numba import njit, prange
+
 from gevsim.pixel._fastmath import expf, logf
 
 BLOCK = 1024  # pixels per parallel work item (fixed, so results do not depend on threads)

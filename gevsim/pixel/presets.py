@@ -68,7 +68,8 @@ def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None 
             continue
         owner = next((name for name, obj in parts.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
         if owner is None:
-            names = ["pixel_pitch_m", "fill_factor"] + [f.name for obj in parts.values() for f in dataclasses.fields(obj)]
+            names = ["pixel_pitch_m", "fill_factor"] + [f.name for obj in parts.values()
+                                                        for f in dataclasses.fields(obj)]
             raise ConfigError(f"no sensor parameter {key!r}{suggest(key, names)}", source=source, key=key)
         try:
             parts[owner] = dataclasses.replace(parts[owner], **{key: value})
@@ -113,7 +114,8 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
             raise ConfigError("give cutoff_ref_lux or cutoff_ref_photocurrent_a, not both", source=src,
                               key="photoreceptor.cutoff_ref_lux")
         if not isinstance(lux, (int, float)) or isinstance(lux, bool) or not (lux > 0 and math.isfinite(lux)):
-            raise ConfigError(f"expected a positive number, got {lux!r}", source=src, key="photoreceptor.cutoff_ref_lux")
+            raise ConfigError(f"expected a positive number, got {lux!r}", source=src,
+                              key="photoreceptor.cutoff_ref_lux")
         receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
             lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
             spectrum=sensor.get("bandwidth_reference_spectrum", "D65"), source=src)

@@ -11,7 +11,6 @@ from gevsim.reconstruct.gradient import (
     quantized_gradients,
     reconstruct,
 )
-from gevsim.reconstruct.tonemap import ToneMap
 from gevsim.reconstruct.poisson import (
     PAPER_ALPHA,
     PAPER_ITERATIONS,
@@ -21,6 +20,7 @@ from gevsim.reconstruct.poisson import (
     solve_poisson,
     sor,
 )
+from gevsim.reconstruct.tonemap import ToneMap
 
 __all__ = [
     "ToneMap", "complementary_filter", "direct_integration", "high_pass_filter",

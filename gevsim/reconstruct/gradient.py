@@ -20,7 +20,14 @@ import numpy as np
 
 from gevsim.events.types import AXIS_X, AXIS_Y
 from gevsim.reconstruct.poisson import (  # noqa: F401  (re-exported)
-    PAPER_ALPHA, PAPER_ITERATIONS, SOLVERS, check_method, dct, laplacian, solve_poisson, sor,
+    PAPER_ALPHA,
+    PAPER_ITERATIONS,
+    SOLVERS,
+    check_method,
+    dct,
+    laplacian,
+    solve_poisson,
+    sor,
 )
 
 #: Scaling constant c of the paper for three thresholds {4, 8, 16}/255 (Sec. "Reconstruction example").
@@ -146,8 +153,9 @@ class GradientReconstructor:
     alpha, iterations : SOR parameters.
     """
 
-    def __init__(self, shape, theta, *, rc: bool = False, method: str = "dct", c: float = PAPER_C,
-                 warm_start: bool = True, alpha: float = PAPER_ALPHA, iterations: int = PAPER_ITERATIONS):
+    def __init__(self, shape: tuple[int, int], theta: np.ndarray, *, rc: bool = False, method: str = "dct",
+                 c: float = PAPER_C, warm_start: bool = True, alpha: float = PAPER_ALPHA,
+                 iterations: int = PAPER_ITERATIONS):
         self.shape = tuple(int(n) for n in shape)
         if len(self.shape) != 2:
             raise ValueError(f"shape must be (H, W), got {shape!r}")

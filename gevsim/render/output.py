@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -17,12 +18,14 @@ import gevsim
 from gevsim.illumination import flicker_index, percent_flicker
 from gevsim.io import MANIFEST, atomic_dir, write_exr
 from gevsim.optics import Lens, cos4_map, focal_plane_irradiance, illuminance_lux, luminance
+from gevsim.render.backend import VariantChoice
 from gevsim.render.basis import BasisSet
 from gevsim.render.manifest import SceneManifest
 from gevsim.render.scene_config import resolved_config, scene_optics
 
-def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s, *, lens: Lens,
-                      exposure_s=None, flicker=True) -> np.ndarray:
+
+def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s: Sequence[float], *, lens: Lens,
+                      exposure_s: float | None = None, flicker: bool = True) -> np.ndarray:
     """Focal-plane irradiance (T, H, W, C), photopic-equivalent W/m^2, at ``times_s``."""
     r = manifest.render
     radiance = basis.radiance(times_s, exposure_s=exposure_s, flicker=flicker)
@@ -30,8 +33,9 @@ def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s, *, lens
     return focal_plane_irradiance(radiance, lens=lens, cos4=cos4).astype(np.float32)
 
 
-def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSet, *, variant, frame_rate_hz=None,
-                 exposure_s=None, plots=False, progress=None) -> dict:
+def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSet, *, variant: VariantChoice,
+                 frame_rate_hz: float | None = None, exposure_s: float | None = None, plots: bool = False,
+                 progress: Callable[[int, int], None] | None = None) -> dict:
     """Write basis images, optional frames and plots, and ``manifest.json`` to ``out``."""
     lens, pixel = scene_optics(manifest)
     r = manifest.render
@@ -58,7 +62,7 @@ def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSe
         "poses": [{"t_s": float(t)} for t in basis.times_s],
         "render_s": basis.render_s.tolist(),
     }
-    for k, name in enumerate(basis.groups):
+    for name in basis.groups:
         group = next(g for g in manifest.light_groups if g.name == name)
         wf = group.waveform
         info["light_groups"].append({

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from gevsim.emulation.frames import emulate_frames
 from gevsim.events import GradientEmulator, decode, encode, gradients, ternary, threshold_matrix
 from gevsim.events.gradient import PAPER_THRESHOLDS
-from gevsim.emulation.frames import emulate_frames
 
 
 @pytest.mark.parametrize("rc", [False, True])

@@ -3,8 +3,16 @@
 import numpy as np
 import pytest
 
-from gevsim.emulation.emulators import (APS_READ_SEED, APS_SEED, EMULATORS, FRAME_EMULATORS, PHOTORECEPTOR_SEED,
-                                        SEED_SLOTS, STREAMS, check_emulator)
+from gevsim.emulation.emulators import (
+    APS_READ_SEED,
+    APS_SEED,
+    EMULATORS,
+    FRAME_EMULATORS,
+    PHOTORECEPTOR_SEED,
+    SEED_SLOTS,
+    STREAMS,
+    check_emulator,
+)
 from gevsim.evaluation.methods import METHODS, check_method
 
 
@@ -22,7 +30,7 @@ def test_streams_are_distinct_and_frame_mode_runs_a_subset():
 
 
 def test_every_method_reads_a_registered_emulator():
-    for name, method in METHODS.items():
+    for method in METHODS.values():
         assert method.emulator in EMULATORS
         assert method.stream == EMULATORS[method.emulator].stream
     assert METHODS["dct_rc"].emulator == "gradient_rc" and METHODS["complementary"].needs_aps

@@ -6,8 +6,17 @@ import numpy as np
 import pytest
 
 from gevsim.illumination import (
-    DC, PWM, Fluorescent, Incandescent, SodiumHID, Sinusoid, Table, Waveform,
-    flicker_index, modulation_spectrum, percent_flicker,
+    DC,
+    PWM,
+    Fluorescent,
+    Incandescent,
+    Sinusoid,
+    SodiumHID,
+    Table,
+    Waveform,
+    flicker_index,
+    modulation_spectrum,
+    percent_flicker,
 )
 from gevsim.illumination.mains import first_order_response
 

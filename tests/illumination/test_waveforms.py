@@ -9,7 +9,15 @@ from hypothesis import strategies as st
 
 from gevsim.errors import ConfigError
 from gevsim.illumination import (
-    DC, PWM, WAVEFORMS, Fluorescent, Incandescent, SodiumHID, Sinusoid, Table, from_spec,
+    DC,
+    PWM,
+    WAVEFORMS,
+    Fluorescent,
+    Incandescent,
+    Sinusoid,
+    SodiumHID,
+    Table,
+    from_spec,
 )
 from gevsim.illumination.mains import first_order_response
 

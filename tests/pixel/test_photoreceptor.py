@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from gevsim.pixel import NoiseParams, Photoreceptor, PhotoreceptorParams, shot_noise_variance_ln
-from gevsim.pixel import _kernels
+from gevsim.pixel import NoiseParams, Photoreceptor, PhotoreceptorParams, _kernels, shot_noise_variance_ln
 
 QUIET = NoiseParams(shot_noise=False, dark_current_a=1e-18)
 REC = PhotoreceptorParams(cutoff_hz=3000.0, cutoff_ref_photocurrent_a=1e-12, max_cutoff_hz=20000.0)

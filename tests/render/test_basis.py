@@ -4,13 +4,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import small
 
 from gevsim.optics import Lens, focal_plane_irradiance, illuminance_lux, luminance
 from gevsim.render import MitsubaScene, render_basis
 from gevsim.render.basis import cache_key
 from gevsim.render.output import irradiance_frames
-
-from conftest import small
 
 PANEL = Path(__file__).parents[1] / "data" / "panel.toml"
 

@@ -63,10 +63,12 @@ BAD = [
                                                                         "did you mean 'panel'"]),
     ("negative radiance", ("[3.0, 2.0, 1.0]", "[3.0, -2.0, 1.0]"), ["light_groups.lamp.radiance_w_m2_sr", "negative"]),
     ("nan radiance", ("[3.0, 2.0, 1.0]", "[3.0, nan, 1.0]"), ["light_groups.lamp.radiance_w_m2_sr", "finite"]),
-    ("zero-mean waveform", ('waveform = { type = "dc" }', 'waveform = { type = "table", times_s = [0.0, 1.0], values = [0.0, 0.0] }'),
+    ("zero-mean waveform",
+     ('waveform = { type = "dc" }', 'waveform = { type = "table", times_s = [0.0, 1.0], values = [0.0, 0.0] }'),
      ["light_groups.lamp.waveform", "mean"]),
     ("unknown waveform", ('type = "pwm"', 'type = "pwn"'), ["light_groups.panel.waveform", "did you mean 'pwm'"]),
-    ("emitter in no group", ('[light_groups.lamp]\nemitters = ["lamp"]\nradiance_w_m2_sr = [3.0, 2.0, 1.0]\nwaveform = { type = "dc" }', ""),
+    ("emitter in no group",
+     ('[light_groups.lamp]\nemitters = ["lamp"]\nradiance_w_m2_sr = [3.0, 2.0, 1.0]\nwaveform = { type = "dc" }', ""),
      ["'lamp' belongs to no light group"]),
     ("malformed toml", ("[render]", "[render"), ["malformed TOML"]),
     ("unknown table", ("[optics]", "[optic]"), ["optic", "did you mean 'optics'"]),
@@ -100,7 +102,8 @@ def test_unknown_builtin_scene_suggests(tmp_path, capsys):
 
 def test_failed_run_keeps_earlier_output(scene_dir, tmp_path):
     out = tmp_path / "out"
-    assert main(["render", str(scene_dir / "panel.toml"), "--out", str(out), "--cache", str(tmp_path / "c")] + SMALL) == 0
+    cmd = ["render", str(scene_dir / "panel.toml"), "--out", str(out), "--cache", str(tmp_path / "c")] + SMALL
+    assert main(cmd) == 0
     before = (out / "manifest.json").read_bytes()
     bad = edit(scene_dir, 'emitters = ["panel"]', 'emitters = ["nothing"]')
     assert main(["render", str(bad), "--out", str(out), "--cache", str(tmp_path / "c")] + SMALL) == 2
@@ -111,7 +114,8 @@ def test_refuses_to_replace_a_foreign_folder(scene_dir, tmp_path, capsys):
     out = tmp_path / "mine"
     out.mkdir()
     (out / "thesis.tex").write_text("precious")
-    assert main(["render", str(scene_dir / "panel.toml"), "--out", str(out), "--cache", str(tmp_path / "c")] + SMALL) == 2
+    cmd = ["render", str(scene_dir / "panel.toml"), "--out", str(out), "--cache", str(tmp_path / "c")] + SMALL
+    assert main(cmd) == 2
     assert "not empty" in capsys.readouterr().err and (out / "thesis.tex").read_text() == "precious"
 
 

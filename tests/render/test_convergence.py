@@ -159,7 +159,8 @@ def test_bad_quality_settings_name_the_key(key, value, match):
 
 def test_bad_quality_settings_in_a_manifest_name_file_and_key(tmp_path):
     src = load("office").source
-    text = open(src).read().replace("[render]", "[render]\nsampler = \"stratifed\"").replace("\nsampler = \"multijitter\"", "\n#")
+    text = open(src).read().replace("[render]", "[render]\nsampler = \"stratifed\"")
+    text = text.replace("\nsampler = \"multijitter\"", "\n#")
     (tmp_path / "office.py").write_text(open(src.replace(".toml", ".py")).read())
     path = tmp_path / "bad.toml"
     path.write_text(text)

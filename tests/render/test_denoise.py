@@ -2,14 +2,13 @@
 
 import numpy as np
 import pytest
+from conftest import small
 
 from gevsim.errors import ConfigError
 from gevsim.render import MitsubaScene, load, override, render_basis
 from gevsim.render.basis import cache_key
 from gevsim.render.convergence import sample_se_ln
 from gevsim.render.denoise import available, denoise
-
-from conftest import small
 
 needs_oidn = pytest.mark.skipif(available() is not None, reason=f"OIDN unavailable: {available()}")
 

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from conftest import small
 
 from gevsim.optics import luminance
 from gevsim.render import MitsubaScene
 from gevsim.render.integrator import group_emitters, render_groups
-
-from conftest import small
 
 SEEDS = 6
 SPP = 64

@@ -13,7 +13,8 @@ def _render_card(bsdf, variant):
     scene = mi.load_dict({
         "type": "scene",
         "integrator": {"type": "direct"},
-        "sensor": {"type": "perspective", "fov": 40, "to_world": t.look_at(origin=[0, 0, 3], target=[0, 0, 0], up=[0, 1, 0]),
+        "sensor": {"type": "perspective", "fov": 40,
+                   "to_world": t.look_at(origin=[0, 0, 3], target=[0, 0, 0], up=[0, 1, 0]),
                    "film": {"type": "hdrfilm", "width": 32, "height": 32, "rfilter": {"type": "box"}}},
         "card": s.rectangle([0, 0, 0], [1, 1], facing="+z", bsdf=bsdf),
         "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [1, 1, 1]}},
