@@ -271,17 +271,6 @@ class BasisSet:
     def shape(self) -> tuple[int, int, int]:
         return self.images.shape[2:]
 
-    def pose_blend(self, t_s: float) -> np.ndarray:
-        """(K, H, W, C) basis at time ``t_s``: linear blend of the poses around it."""
-        t = self.times_s
-        if len(t) == 1 or t_s <= t[0]:
-            return self.images[0]
-        if t_s >= t[-1]:
-            return self.images[-1]
-        i = int(np.searchsorted(t, t_s, side="right")) - 1
-        a = (t_s - t[i]) / (t[i + 1] - t[i])
-        return (1.0 - a) * self.images[i] + a * self.images[i + 1]
-
     def radiance(self, times_s: Sequence[float], *, exposure_s: float | None = None, flicker: bool = True) -> np.ndarray:
         """Radiance (T, H, W, C) at ``times_s`` (averaged over ``exposure_s`` after each when given).
 

@@ -3,7 +3,7 @@
 Poses are rendered at a rate that keeps image motion under
 ``max_px_per_pose`` pixels between consecutive poses; irradiance between two
 poses is the linear blend of their basis images (see
-:func:`gevsim.render.basis.pose_blend`).
+:func:`gevsim.illumination.mix_poses`).
 """
 
 from __future__ import annotations
