@@ -32,7 +32,7 @@ from gevsim.illumination import Waveform, weights_at
 from gevsim.io import read_exr_layers, write_exr_layers
 from gevsim.optics import luminance
 from gevsim.render.convergence import (MIN_BATCHES, BatchAccumulator, NoiseReport, mixture_weights,
-                                       next_batch_spp, sample_se_ln)
+                                       next_batch_spp, sample_se_ln, error_percentiles)
 from gevsim.render.manifest import RenderSettings
 from gevsim.render.scene import MitsubaScene, content_hash, exact_count
 from gevsim.render.trajectory import Pose
@@ -198,10 +198,7 @@ def denoise_pose(scene: MitsubaScene, acc: BatchAccumulator, request: dict):
     mean, noise = denoise_groups(acc.mean(), acc.halves(), albedo, normal)
     se = sample_se_ln(acc.mixtures[:-1], luminance(mean), luminance(noise), floor_rel=acc.floor_rel,
                       metric=acc.metric)
-    p = request["percentile"]
-    return mean, noise, {"p50": float(np.percentile(se, 50)), "p90": float(np.percentile(se, 90)),
-                         "p99": float(np.percentile(se, 99)), "max": float(se.max()),
-                         "at_percentile": float(np.percentile(se, p))}
+    return mean, noise, error_percentiles(se, request["percentile"])
 
 
 def fixed_batches(spp: int, sampler: str, *, cap: int) -> tuple[int, int]:

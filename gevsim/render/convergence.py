@@ -220,10 +220,15 @@ class BatchAccumulator:
         """Percentiles of the error map ``se`` (default: :meth:`se_ln`), and the other metric's at ``percentile``."""
         se = self.se_ln() if se is None else se
         other = "absolute" if self.metric == "flicker" else "flicker"
-        return {"p50": float(np.percentile(se, 50)), "p90": float(np.percentile(se, 90)),
-                "p99": float(np.percentile(se, 99)), "max": float(se.max()),
-                "at_percentile": float(np.percentile(se, percentile)),
+        return {**error_percentiles(se, percentile),
                 f"{other}_at_percentile": float(np.percentile(self.se_ln(other), percentile))}
+
+
+def error_percentiles(se: np.ndarray, percentile: float) -> dict:
+    """p50, p90, p99, max and the ``percentile``-th percentile of an error map."""
+    return {"p50": float(np.percentile(se, 50)), "p90": float(np.percentile(se, 90)),
+            "p99": float(np.percentile(se, 99)), "max": float(se.max()),
+            "at_percentile": float(np.percentile(se, percentile))}
 
 
 def sample_se_ln(mixtures: np.ndarray, luminance: np.ndarray, error: np.ndarray, *, floor_rel: float,
@@ -247,10 +252,8 @@ def sample_se_ln(mixtures: np.ndarray, luminance: np.ndarray, error: np.ndarray,
     scale = np.abs(y) + floor_rel * y.reshape(len(y), -1).mean(axis=1)[:, None, None]
     rel = d / scale
     if metric == "flicker":
-        rel = rel - rel[-1]
-    var = uniform_filter(rel[:-1] ** 2, size=(1, window, window), mode="nearest") if metric == "flicker" else \
-        uniform_filter(rel ** 2, size=(1, window, window), mode="nearest")
-    return np.sqrt(var).max(axis=0)
+        rel = rel - rel[-1]  # the reference row becomes 0 and drops out of the max
+    return np.sqrt(uniform_filter(rel**2, size=(1, window, window), mode="nearest")).max(axis=0)
 
 
 def next_batch_spp(total_spp: int, *, first: int, cap: int) -> int:
