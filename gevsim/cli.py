@@ -194,20 +194,40 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from gevsim.experiments.executors import make_executor
     from gevsim.experiments.report import comparison_table, write_study_outputs
     from gevsim.experiments.study import check_study_scenes, load_study, run_study
 
     study = load_study(args.config)
+    if args.repeats is not None:
+        study = dataclasses.replace(study, base={**study.base, "repeats": args.repeats})
     check_study_scenes(study)
-    update, close = _progress(f"study {study.name}", not args.quiet, unit="run")
-    try:
-        rows = run_study(study, args.out, cache_dir=args.cache, progress=update, keep_files=args.keep_files)
-    finally:
-        close()
+    _quiet_dask(args)
+    with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
+        update, close = _progress(f"study {study.name}", not args.quiet, unit="job")
+        try:
+            rows = run_study(study, args.out, cache_dir=args.cache, executor=executor, progress=update,
+                             keep_files=args.keep_files)
+        finally:
+            close()
     report = write_study_outputs(args.out, study, rows)
     print(comparison_table(rows, study))
-    print(f"gevsim: {len(rows)} runs; report {report}", file=sys.stderr)
+    print(f"gevsim: {len(rows)} runs x {study.base['repeats']} repeats; report {report}", file=sys.stderr)
     return 0
+
+
+def _quiet_dask(args: argparse.Namespace) -> None:
+    """distributed sets its loggers to INFO on import: back to WARNING unless --verbose."""
+    if args.executor != "dask" or args.verbose:
+        return
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return  # make_executor says what to install
+    for name in [n for n in logging.root.manager.loggerDict if n.split(".")[0] == "distributed"]:
+        logging.getLogger(name).setLevel(logging.WARNING)
 
 
 def cmd_dataset(args: argparse.Namespace) -> int:
@@ -215,13 +235,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     from gevsim.experiments.executors import make_executor
 
     config = load_dataset_config(args.config)
-    if args.executor == "dask" and not args.verbose:  # distributed sets its loggers to INFO on import
-        try:
-            import distributed  # noqa: F401
-        except ImportError:
-            pass  # make_executor says what to install
-        for name in [n for n in logging.root.manager.loggerDict if n.split(".")[0] == "distributed"]:
-            logging.getLogger(name).setLevel(logging.WARNING)
+    _quiet_dask(args)
     with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
         update, close = _progress("dataset", not args.quiet, unit="seq")
         try:
@@ -232,6 +246,26 @@ def cmd_dataset(args: argparse.Namespace) -> int:
           f"{summary['events']} events ({', '.join(f'{k} {v}' for k, v in summary['counts'].items())}); "
           f"wrote {args.out} in {summary['seconds']:.1f} s", file=sys.stderr)
     return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _executor_options(parser: argparse.ArgumentParser) -> None:
+    from gevsim.experiments.executors import EXECUTORS
+
+    parser.add_argument("--executor", choices=tuple(EXECUTORS), default="local",
+                        help="local process pool (default) or Dask distributed")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster)")
+    parser.add_argument("--workers", type=_positive_int, metavar="N",
+                        help="worker processes (default: the number of CPUs)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -301,18 +335,19 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
     d.add_argument("config", help="dataset config (see gevsim/experiments/dataset.py)")
     d.add_argument("--out", required=True, help="output folder; finished sequences in it are kept")
-    d.add_argument("--executor", choices=("local", "dask"), default="local",
-                   help="local process pool (default) or Dask distributed")
-    d.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster)")
-    d.add_argument("--workers", type=int, metavar="N", help="worker processes (default: the number of CPUs)")
+    _executor_options(d)
     d.add_argument("--cache", metavar="DIR", help="basis image cache (shared by the workers)")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=cmd_dataset)
 
-    s = sub.add_parser("study", help="run (or resume) a study: sweeps with counterfactuals, plots and a report")
+    s = sub.add_parser("study", help="run (or resume) a study: sweeps with repeats and counterfactuals, intervals, "
+                                     "plots and a report")
     s.add_argument("config", help="a study config (experiments/*.toml)")
     s.add_argument("--out", required=True, help="study folder (runs/ inside makes reruns resume)")
-    s.add_argument("--cache", metavar="DIR", help="basis image cache")
+    s.add_argument("--repeats", type=_positive_int, metavar="R",
+                   help="noise seeds per run (default: [study] repeats); more repeats reuse the finished ones")
+    _executor_options(s)
+    s.add_argument("--cache", metavar="DIR", help="basis image cache (default with workers: OUT/render-cache)")
     s.add_argument("--keep-files", action="store_true", help="keep every run's HDF5 files")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_study)

@@ -27,6 +27,7 @@ from gevsim.errors import ConfigError, suggest
 from gevsim.illumination import from_spec, mix_poses, weights_at
 from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
+from gevsim.optics.photometry import K_M_LM_PER_W
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
 from gevsim.pixel.presets import with_overrides
 from gevsim.render import MitsubaScene, load, override, render_basis
@@ -51,6 +52,7 @@ class Setup:
     variant: object
     current_noise: np.ndarray | None = None  # (P, K, H, W): the render's error sample in photocurrent
     render_quality: dict = dataclasses.field(default_factory=dict)  # achieved render noise (summarize_quality)
+    chip_lux_per_a: np.ndarray | None = None  # (K,): illuminance on the chip per ampere of each group's photocurrent
 
 
 def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = None,
@@ -92,8 +94,10 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
     noise = (luminance(basis.noise) * per_group).astype(np.float64)
     waveforms = tuple(from_spec(config.group_waveform[g], source=config.source, key=f"light.groups.{g}.waveform")
                       if g in config.group_waveform else w for g, w in zip(names, basis.waveforms))
+    # Photocurrent = Y E_factor 683 area R_k; illuminance on the chip = Y E_factor 683 (both x cos4 x scale).
+    lux_per_a = lens.irradiance_factor * K_M_LM_PER_W / factors
     return Setup(manifest, preset, basis.times_s, current, waveforms, duration, scene.variant, current_noise=noise,
-                 render_quality=basis.noise_summary())
+                 render_quality=basis.noise_summary(), chip_lux_per_a=lux_per_a)
 
 
 def counterfactual(setup: Setup, *, flicker: bool = True, noise: bool = True) -> Setup:

@@ -14,45 +14,27 @@ from __future__ import annotations
 import contextlib
 import logging
 import multiprocessing
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 
 from gevsim.errors import ConfigError, MissingExtraError, suggest
 
 log = logging.getLogger(__name__)
-KINDS = ("local", "dask")
 
 
 @contextlib.contextmanager
-def make_executor(kind: str = "local", *, workers: int | None = None, scheduler: str | None = None,
-                  processes: bool = True) -> Iterator[Executor]:
-    """Yield an executor; everything it started is shut down on exit.
+def _local(workers: int | None, scheduler: str | None, processes: bool) -> Iterator[Executor]:
+    """A spawn-context ``ProcessPoolExecutor`` of ``workers`` processes (default: the CPUs)."""
+    if scheduler is not None:
+        raise ConfigError("a scheduler address needs the dask executor", key="scheduler")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield pool
 
-    Parameters
-    ----------
-    kind : {"local", "dask"}
-        ``local``: a spawn-context ``ProcessPoolExecutor``. ``dask``: a
-        ``dask.distributed`` client's executor, connected to ``scheduler`` if
-        given, else to a new ``LocalCluster``.
-    workers : int, optional
-        Worker processes (local pool, or the LocalCluster's workers, one thread
-        each). Default: the number of CPUs. Ignored with ``scheduler``.
-    scheduler : str, optional
-        Address of a running Dask scheduler, e.g. ``tcp://10.0.0.1:8786``.
-    processes : bool
-        LocalCluster only: workers in processes (default) or threads of this one.
-    """
-    if kind not in KINDS:
-        raise ConfigError(f"unknown executor {kind!r}{suggest(str(kind), KINDS)}; choose from {', '.join(KINDS)}",
-                          key="executor")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ConfigError(f"must be a positive integer, got {workers!r}", key="workers")
-    if kind == "local":
-        if scheduler is not None:
-            raise ConfigError("a scheduler address needs the dask executor", key="scheduler")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            yield pool
-        return
+
+@contextlib.contextmanager
+def _dask(workers: int | None, scheduler: str | None, processes: bool) -> Iterator[Executor]:
+    """A ``dask.distributed`` client's executor: on the scheduler at ``scheduler``, else on a new
+    ``LocalCluster`` of ``workers`` one-thread workers (processes, or threads with ``processes=False``)."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -71,3 +53,40 @@ def make_executor(kind: str = "local", *, workers: int | None = None, scheduler:
             yield executor
         finally:
             executor.shutdown(wait=True)
+
+
+#: Executor kinds: name -> ``factory(workers, scheduler, processes)``, a context manager yielding an
+#: executor (colour-science's ``*_METHODS`` pattern). Adding one is a function and an entry here.
+EXECUTORS: dict[str, Callable[[int | None, str | None, bool], contextlib.AbstractContextManager[Executor]]] = {
+    "local": _local,
+    "dask": _dask,
+}
+KINDS = tuple(EXECUTORS)
+
+
+@contextlib.contextmanager
+def make_executor(kind: str = "local", *, workers: int | None = None, scheduler: str | None = None,
+                  processes: bool = True) -> Iterator[Executor]:
+    """Yield an executor of kind ``kind`` (:data:`EXECUTORS`); everything it started is shut down on exit.
+
+    Parameters
+    ----------
+    kind : {"local", "dask"}
+        ``local``: a spawn-context ``ProcessPoolExecutor``. ``dask``: a
+        ``dask.distributed`` client's executor, connected to ``scheduler`` if
+        given, else to a new ``LocalCluster``.
+    workers : int, optional
+        Worker processes (local pool, or the LocalCluster's workers, one thread
+        each). Default: the number of CPUs. Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask scheduler, e.g. ``tcp://10.0.0.1:8786``.
+    processes : bool
+        LocalCluster only: workers in processes (default) or threads of this one.
+    """
+    if kind not in EXECUTORS:
+        raise ConfigError(f"unknown executor {kind!r}{suggest(str(kind), KINDS)}; choose from {', '.join(KINDS)}",
+                          key="executor")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ConfigError(f"must be a positive integer, got {workers!r}", key="workers")
+    with EXECUTORS[kind](workers, scheduler, processes) as executor:
+        yield executor

@@ -1,11 +1,17 @@
-"""Study outputs: results table (CSV, JSON), PNG plots and one Markdown report,
-written into a staged folder and renamed into place together with the config."""
+"""Study outputs: results table (CSV, JSON), per-pixel maps, PNG figures and one Markdown report,
+written into a staged folder and renamed into place together with the config.
+
+Every flicker-induced rate and the rejection ratio appear with their 95 % interval; an estimate
+whose interval holds zero is written "not distinguishable from zero (...)", never as a bare number
+(:meth:`gevsim.metrics.attribution.Interval.format`).
+"""
 
 from __future__ import annotations
 
 import csv
 import io
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +19,9 @@ import numpy as np
 import gevsim
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.evaluation.methods import METHODS
-from gevsim.experiments.study import Study
+from gevsim.experiments import study_plots
+from gevsim.experiments.aggregate import agreement, interval_of
+from gevsim.experiments.study import Study, run_id
 
 
 def flat_rows(rows: list[dict]) -> list[dict]:
@@ -36,167 +44,177 @@ def write_table(folder: Path, rows: list[dict]) -> None:
     (folder / "results.json").write_text(json.dumps(rows, indent=1, default=float))
 
 
-def _axis_values(rows, key):
-    return [row.get(key) for row in rows]
+def _emulators(rows: list[dict]) -> list[str]:
+    return [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
 
 
-def plots(folder: Path, study: Study, rows: list[dict]) -> list[tuple[str, str]]:
-    """Write the PNG plots; returns (file, caption) pairs for the report."""
-    from gevsim.plots import _pyplot, save_figure
-
-    plt = _pyplot()
-    x = study.report.get("x") or next(iter(study.axes), None)
-    # One panel per combination of the other swept axes (``lines`` first, if given).
-    others = [a for a in study.axes if a != x and len(study.axes[a]) > 1]
-    lines = study.report.get("lines")
-    if lines in others:
-        others.remove(lines)
-        others.insert(0, lines)
-    emulators = [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
-
-    def label(row):
-        return ", ".join(f"{a}={row.get(a)}" for a in others) if others else study.name
-
-    groups = list(dict.fromkeys(label(row) for row in rows))
-    made = []
-
-    def series(group):
-        sel = [row for row in rows if label(row) == group]
-        return sorted(sel, key=lambda row: (row.get(x) if isinstance(row.get(x), (int, float)) else str(row.get(x))))
-
-    def xvals(sel):
-        vals = _axis_values(sel, x)
-        numeric = all(isinstance(v, (int, float)) for v in vals)
-        return (vals if numeric else list(range(len(vals)))), numeric, [str(v) for v in vals]
-
-    values = [v for v in study.axes.get(x, []) if isinstance(v, (int, float))]
-    log_x = bool(values) and min(values) > 0 and max(values) / min(values) >= 10
-
-    # 1. Flicker-induced events per pixel per second, per emulator.
-    cols = min(4, len(groups))
-    nrows = -(-len(groups) // cols)
-    fig, axes = plt.subplots(nrows, cols, figsize=(4.6 * cols, 3.6 * nrows + 0.6), squeeze=False, sharey=True)
-    for ax in axes.ravel()[len(groups):]:
-        ax.axis("off")
-    for ax, group in zip(axes.ravel(), groups):
-        sel = series(group)
-        xs, numeric, labels = xvals(sel)
-        for e in emulators:
-            ys = np.maximum([row[f"{e}_flicker_per_pixel_s"] for row in sel], 1e-3)
-            ax.plot(xs, ys, "o-", color=EMULATORS[e].color, label=e)
-            if f"{e}_render_floor_per_pixel_s" in sel[0]:
-                floor = np.maximum([row[f"{e}_render_floor_per_pixel_s"] for row in sel], 1e-3)
-                ax.plot(xs, floor, ":", color=EMULATORS[e].color, alpha=0.8, label=f"{e} render-noise floor")
-        ax.set_yscale("log")
-        if numeric and log_x:
-            ax.set_xscale("log")
-        if not numeric:
-            ax.set_xticks(xs, labels, rotation=20)
-        ax.set_xlabel(x)
-        ax.set_title(group, fontsize=9)
-        ax.grid(alpha=0.3, which="both")
-    axes[0, 0].set_ylabel("flicker-induced events / pixel / s")
-    axes[0, 0].legend(fontsize=8)
-    fig.suptitle("Flicker-induced event rate (run minus its flicker-free counterfactual; <= 0 drawn at 1e-3);\n"
-                 "dotted: render-noise floor (what render noise alone causes)", fontsize=10)
-    fig.tight_layout()
-    save_figure(fig, folder / "flicker_rate.png")
-    made.append(("flicker_rate.png", "Flicker-induced events per pixel per second for each emulator; dotted lines: "
-                                     "the render-noise floor of the same stream."))
-
-    # 2. Rejection ratio and reconstruction quality.
-    methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
-    for group in groups:
-        sel = series(group)
-        xs, numeric, labels = xvals(sel)
-        if "flicker_rejection_ratio" in sel[0]:
-            a.plot(xs, np.maximum([row["flicker_rejection_ratio"] for row in sel], 1e-3), "o-", label=str(group))
-        for m in methods:
-            b.plot(xs, [row[f"{m}_ssim"] for row in sel], "o-", label=f"{m} ({group})" if others else m)
-    for ax, title in ((a, "flicker rejection ratio (DVS / gradient)"), (b, "SSIM vs flicker-free reference")):
-        ax.set_xlabel(x)
-        ax.set_title(title)
-        ax.grid(alpha=0.3, which="both")
-        if log_x:
-            ax.set_xscale("log")
-        ax.legend(fontsize=6)
-    a.set_yscale("log")
-    fig.tight_layout()
-    save_figure(fig, folder / "rejection_quality.png")
-    made.append(("rejection_quality.png", "Left: DVS over gradient flicker-induced events. Right: reconstruction "
-                                          "SSIM of each method against the flicker-free reference."))
-
-    # 3. Event-rate spectrum of the run with the most flicker events.
-    with_spec = [row for row in rows if "dvs_spectrum" in row]
-    if with_spec:
-        row = max(with_spec, key=lambda r: r.get("dvs_flicker_per_pixel_s", 0))
-        f, amp = np.array(row["dvs_spectrum"]["hz"]), np.array(row["dvs_spectrum"]["amplitude"])
-        fig, ax = plt.subplots(figsize=(8, 3.5))
-        ax.plot(f, amp, lw=1)
-        f0 = row.get("flicker_frequency_hz")
-        if isinstance(f0, (int, float)):
-            for k in range(1, 6):
-                ax.axvline(k * f0, color="0.6", ls=":", lw=1)
-        ax.set_xlabel("frequency (Hz)")
-        ax.set_ylabel("DVS event-rate amplitude (events/s)")
-        ax.set_title(f"Event-rate spectrum, {', '.join(f'{k}={row[k]}' for k in study.axes if k in row)}")
-        fig.tight_layout()
-        save_figure(fig, folder / "spectrum.png")
-        made.append(("spectrum.png", "Spectrum of the DVS event rate; dotted lines at harmonics of the flicker."))
-
-    # 4. Quality versus bandwidth, with the Pareto front.
-    stream_of = {m: METHODS[m].emulator for m in methods}
-    points = [(row[f"{stream_of[m]}_events_per_s"], row[f"{m}_ssim"], m) for row in rows for m in methods
-              if f"{stream_of[m]}_events_per_s" in row]
-    if points:
-        fig, ax = plt.subplots(figsize=(6.5, 4.5))
-        for m in methods:
-            pts = np.array([(p[0], p[1]) for p in points if p[2] == m])
-            ax.scatter(np.maximum(pts[:, 0], 1.0), pts[:, 1], s=18, label=m)
-        front = pareto_front([(p[0], p[1]) for p in points])
-        ax.plot([max(p[0], 1.0) for p in front], [p[1] for p in front], "k--", lw=1, label="Pareto front")
-        ax.set_xscale("log")
-        ax.set_xlabel("events / s")
-        ax.set_ylabel("SSIM")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3, which="both")
-        fig.tight_layout()
-        save_figure(fig, folder / "pareto.png")
-        made.append(("pareto.png", "Reconstruction quality against bandwidth; the dashed line is the Pareto front "
-                                   "(fewest events for a given SSIM)."))
-    return made
+def _methods(rows: list[dict]) -> list[str]:
+    return [k[:-5] for k in rows[0] if k.endswith("_ssim")]
 
 
-def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
-    """Points not dominated by another with fewer-or-equal events and higher-or-equal quality."""
-    front, best = [], -np.inf
-    for cost, quality in sorted(points, key=lambda p: (p[0], -p[1])):
-        if quality > best:
-            front.append((cost, quality))
-            best = quality
-    return front
+def fmt(row: dict, key: str, digits: int = 3) -> str:
+    """A row's value with its interval (or the bare value where it has none)."""
+    iv = interval_of(row, key)
+    if iv is not None and iv.low == iv.high == iv.estimate == 0.0:
+        return "0 (in every repeat)"
+    if iv is not None:
+        return iv.format(digits)
+    value = row.get(key)
+    return "-" if value is None else f"{value:.{digits}g}"
+
+
+def ratio_text(row: dict) -> str:
+    """The rejection ratio: Fieller's interval, or its one-sided bound where that set is unbounded."""
+    iv = interval_of(row, "flicker_rejection_ratio")
+    if iv is None:
+        return "-"
+    if math.isfinite(iv.low) and math.isfinite(iv.high):
+        return iv.format()
+    bound = row.get("flicker_rejection_ratio_at_least")
+    if bound:
+        return f"at least {bound:.3g} (gradient rate not distinguishable from zero)"
+    return "not determined (DVS/gradient intervals hold zero: Fieller's set is unbounded)"
+
+
+def _label(row: dict, study: Study) -> str:
+    return ", ".join(f"{a}={row.get(a)}" for a in study.axes)
+
+
+def answer(rows: list[dict], study: Study) -> list[str]:
+    """The report's opening answer, three sentences: which sensor rejects which flicker by how much,
+    and what it costs in noise events and reconstruction quality, with intervals."""
+    if "flicker_rejection_ratio" not in rows[0]:
+        return []
+    scenes = list(dict.fromkeys(r.get("scene", study.base["scene"]) for r in rows))
+    parts = []
+    for scene in scenes:
+        sel = [r for r in rows if r.get("scene", study.base["scene"]) == scene]
+        best = max(sel, key=lambda r: r["dvs_flicker_per_pixel_s_low"])  # the clearest flicker
+        lamp = best["flicker_group"] + (f" at {best['flicker_frequency_hz']:g} Hz" if best["flicker_frequency_hz"]
+                                        else " (steady)")
+        where = ", ".join(f"{a}={best.get(a)}" for a in study.axes if a != "scene")
+        parts.append(f"in {scene} ({lamp}; {where}) DVS events carry {fmt(best, 'dvs_flicker_per_pixel_s')} "
+                     f"flicker-induced ev/px/s and gradient events {fmt(best, 'gradient_flicker_per_pixel_s')}, "
+                     f"a rejection ratio of {ratio_text(best)}")
+    first = "Gradient events against DVS, 95 % intervals over repeated noise seeds: " + "; ".join(parts) + "."
+    noise = {e: float(np.median([r[f"{e}_noise_per_pixel_s"] for r in rows])) for e in ("dvs", "gradient")}
+    worst = max(rows, key=lambda r: r["gradient_noise_per_pixel_s"])
+    second = (f"The cost in noise: the median noise-induced rate is {noise['gradient']:.3g} ev/px/s for gradient "
+              f"events against {noise['dvs']:.3g} for DVS, up to {fmt(worst, 'gradient_noise_per_pixel_s')} "
+              f"({_label(worst, study)}).")
+    third = ""
+    methods = [m for m in _methods(rows) if any(np.isfinite(r[f"{m}_ssim"]) for r in rows)]
+    by_stream = {}
+    for m in methods:
+        stream = "gradient" if METHODS[m].emulator.startswith("gradient") else "brightness"
+        by_stream.setdefault(stream, []).append(m)
+    if len(by_stream) == 2:
+        texts = []
+        for stream, ms in by_stream.items():
+            best_m = max(ms, key=lambda m: np.nanmean([r[f"{m}_ssim"] for r in rows]))
+            mean = float(np.nanmean([r[f"{best_m}_ssim"] for r in rows]))
+            texts.append(f"{stream} events {mean:.3f} ({best_m})")
+        third = ("In reconstruction quality (SSIM against the flicker-free scene, mean over runs) the best method "
+                 f"reaches {' and '.join(texts)}; per-run intervals are in the table below.")
+    return [first, second] + ([third] if third else [])
+
+
+def findings(rows: list[dict], study: Study) -> list[str]:
+    """Plain-language sentences, each figure with its interval."""
+    out = []
+    for row in rows:
+        cells = [f"{EMULATORS[e].label} {fmt(row, f'{e}_flicker_per_pixel_s')}" for e in _emulators(rows)]
+        out.append(f"{_label(row, study)}: flicker-induced ev/px/s " + ", ".join(cells)
+                   + f"; rejection ratio {ratio_text(row)}.")
+    disagreements = [f"{_label(r, study)}: {text}" for r in rows for e in _emulators(rows)
+                     if (text := agreement(r, e))]
+    checked = sum(1 for r in rows for e in _emulators(rows) if f"{e}_phase_locked_per_pixel_s" in r)
+    if checked:
+        if disagreements:
+            out.append(f"**The two estimators disagree** in {len(disagreements)} of {checked} (run, stream) pairs "
+                       "on whether flicker acts: " + "; ".join(disagreements) + ".")
+        else:
+            out.append(f"The phase-locked estimator (no subtraction) and the counterfactual agree on whether flicker "
+                       f"acts in all {checked} (run, stream) pairs where both were made.")
+        leaks = [(r, e) for r in rows for e in _emulators(rows)
+                 if f"{e}_phase_locked_control_per_pixel_s_low" in r and r[f"{e}_phase_locked_control_per_pixel_s_low"] > 0]
+        if leaks:
+            out.append(f"In {len(leaks)} (run, stream) pairs the flicker-free counterfactual itself shows a rate "
+                       "modulation at the lamp's harmonics (scene motion or pose changes at those frequencies): "
+                       "there the phase-locked figure is an upper estimate.")
+    if "hysteresis_ln" in rows[0]:
+        for h in sorted({r["hysteresis_ln"] for r in rows}):
+            sel = [r["gradient_noise_per_pixel_s"] for r in rows if r["hysteresis_ln"] == h]
+            out.append(f"With hysteresis {h} ln: gradient noise-induced rate {np.median(sel):.3g} ev/px/s (median "
+                       "over runs).")
+    return out
+
+
+def map_findings(rows: list[dict]) -> list[str]:
+    """Where flicker events come from: shares at lamp-region borders and in the dimmest quarter."""
+    out = []
+    for e in [e for e in _emulators(rows) if e.startswith("gradient") or e == "dvs"]:
+        sel = [r for r in rows if r.get(f"{e}_flicker_border_share") is not None
+               and interval_of(r, f"{e}_flicker_per_pixel_s") and interval_of(r, f"{e}_flicker_per_pixel_s").low > 0]
+        if not sel:
+            continue
+        border = np.median([r[f"{e}_flicker_border_share"] for r in sel])
+        dim = np.median([r[f"{e}_flicker_dim_share"] for r in sel])
+        area_b = np.median([r["border_area_share"] for r in sel])
+        area_d = np.median([r["dim_area_share"] for r in sel])
+        out.append(f"{EMULATORS[e].label}: in the {len(sel)} runs where flicker adds events beyond their interval, "
+                   f"{100 * border:.0f} % of them lie at borders between regions lit by different lamps "
+                   f"({100 * area_b:.0f} % of the pixels) and {100 * dim:.0f} % in the dimmest quarter of the "
+                   f"pixels (median over runs).")
+    return out
+
+
+def render_floor_findings(rows: list[dict]) -> list[str]:
+    """Sentences on render quality: the achieved noise and where flicker rates sit near their floor."""
+    if "render_se_ln" not in rows[0]:
+        return []
+    worst = max(r["render_se_ln"] for r in rows)
+    spp = sorted({r["render_spp_min"] for r in rows} | {r["render_spp_max"] for r in rows})
+    out = [f"**Render quality:** {spp[0]}-{spp[-1]} samples per pixel; worst p{rows[0]['render_se_percentile']:g} "
+           f"standard error of the flicker-relevant ln radiance {worst:.3g}."]
+    missed = [r for r in rows if r.get("render_target_ln") is not None and not r["render_target_reached"]]
+    if missed:
+        out.append(f"{len(missed)} of {len(rows)} runs stopped short of the noise target (max_spp or time budget).")
+    close = []
+    for e in _emulators(rows):
+        n = sum(1 for r in rows if r[f"{e}_render_floor_per_pixel_s"] > 0.2 * abs(r[f"{e}_flicker_per_pixel_s"]))
+        if n:
+            close.append(f"{e} in {n}")
+    if close:
+        out.append("The render-noise floor (events render noise alone causes) exceeds 20 % of the flicker-induced "
+                   f"rate for {', '.join(close)} of {len(rows)} runs: there the figure is set partly by the "
+                   "renderer; render to a smaller noise_target_ln before drawing conclusions.")
+    else:
+        out.append("Every flicker-induced rate is at least 5x its render-noise floor: render noise does not decide "
+                   "these figures.")
+    return out
 
 
 def key_table(rows: list[dict], study: Study) -> str:
-    """Markdown table: the sweep parameters and the headline numbers of every run."""
-    emulators = [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
-    methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
-    head = (list(study.axes) + [f"{e} flicker/px/s (floor)" for e in emulators] + [f"{m} SSIM" for m in methods]
-            + ["render spp", "render ln error"])
+    """Markdown table: the sweep parameters and every headline figure with its 95 % interval."""
+    emulators = _emulators(rows)
+    methods = [m for m in _methods(rows) if any(np.isfinite(r[f"{m}_ssim"]) for r in rows)]
+    head = (list(study.axes) + [f"{e} flicker ev/px/s" for e in emulators] + ["DVS/gradient ratio"]
+            + [f"{e} lamp-locked RMS ev/px/s" for e in emulators if f"{e}_phase_locked_per_pixel_s" in rows[0]]
+            + [f"{e} noise ev/px/s" for e in ("dvs", "gradient") if e in emulators]
+            + [f"{m} SSIM" for m in methods] + ["render spp", "render ln error"])
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for row in rows:
         cells = [str(row.get(a)) for a in study.axes]
-        cells += [f"{row[f'{e}_flicker_per_pixel_s']:.3g} ({_floor(row, e)})" for e in emulators]
-        cells += [f"{row[f'{m}_ssim']:.3f}" for m in methods]
+        cells += [fmt(row, f"{e}_flicker_per_pixel_s") for e in emulators]
+        cells += [ratio_text(row)]
+        cells += [fmt(row, f"{e}_phase_locked_per_pixel_s") for e in emulators
+                  if f"{e}_phase_locked_per_pixel_s" in rows[0]]
+        cells += [fmt(row, f"{e}_noise_per_pixel_s") for e in ("dvs", "gradient") if e in emulators]
+        cells += [fmt(row, f"{m}_ssim") for m in methods]
         cells += [_render_spp(row), _render_error(row)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
-
-
-def _floor(row: dict, e: str) -> str:
-    v = row.get(f"{e}_render_floor_per_pixel_s")
-    return "-" if v is None else f"{v:.3g}"
 
 
 def _render_spp(row: dict) -> str:
@@ -215,103 +233,82 @@ def _render_error(row: dict) -> str:
     return text
 
 
-def render_floor_findings(rows: list[dict]) -> list[str]:
-    """Sentences on render quality: the achieved noise and where flicker rates sit near their floor."""
-    if "render_se_ln" not in rows[0]:
-        return []
-    worst = max(r["render_se_ln"] for r in rows)
-    spp = sorted({r["render_spp_min"] for r in rows} | {r["render_spp_max"] for r in rows})
-    out = [f"**Render quality:** {spp[0]}-{spp[-1]} samples per pixel; worst p{rows[0]['render_se_percentile']:g} "
-           f"standard error of the flicker-relevant ln radiance {worst:.3g}."]
-    missed = [r for r in rows if r.get("render_target_ln") is not None and not r["render_target_reached"]]
-    if missed:
-        out.append(f"{len(missed)} of {len(rows)} runs stopped short of the noise target (max_spp or time budget).")
-    close = []
-    for e in [k[: -len("_render_floor_per_pixel_s")] for k in rows[0] if k.endswith("_render_floor_per_pixel_s")]:
-        n = sum(1 for r in rows if r[f"{e}_render_floor_per_pixel_s"] > 0.2 * abs(r[f"{e}_flicker_per_pixel_s"]))
-        if n:
-            close.append(f"{e} in {n}")
-    if close:
-        out.append("The render-noise floor (events render noise alone causes) exceeds 20 % of the flicker-induced "
-                   f"rate for {', '.join(close)} of {len(rows)} runs: there the figure is set partly by the "
-                   "renderer; render to a smaller noise_target_ln before drawing conclusions.")
-    else:
-        out.append("Every flicker-induced rate is at least 5x its render-noise floor: render noise does not decide "
-                   "these figures.")
-    return out
+METHOD_TEXT = (
+    "How the numbers are made. Each run is repeated with R noise seeds (seed, seed + 1, ...). Each repeat is "
+    "emulated four times with the same seed (common random numbers): as is, with each lamp at its mean (no "
+    "flicker), with an ideal pixel as well, and the render-noise floor (ideal pixel, lamps at their mean, the "
+    "rendered images' Monte Carlo error redrawn at the lamp frequency). Per repeat, flicker-induced = run minus "
+    "no-flicker, noise-induced = no-flicker minus ideal, render-noise floor = floor run minus ideal; the figures "
+    "are their means over repeats with 95 % Student t intervals. The rejection ratio is the ratio of the DVS and "
+    "gradient mean flicker-induced rates with Fieller's 95 % interval from the paired repeats (where the gradient "
+    "rate is not distinguishable from zero Fieller's set is unbounded, and a one-sided lower bound is given: the "
+    "DVS interval's low end over the gradient interval's high end, or over 3 events in all repeats when none "
+    "was counted). The phase-locked estimate needs no subtraction: the event times of all repeats are folded on "
+    "the lamp period and the RMS of the rate modulation carried by the first 4 harmonics is measured, Poisson "
+    "bias removed, with a bootstrap interval and a p-value against uniform phases; the same statistic of the "
+    "flicker-free counterfactual is its control. It measures the lamp-locked part of the rate, not its mean, so "
+    "the two estimators are compared by what they detect. Reconstructions are scored with EVREAL's MSE/SSIM "
+    "against the flicker-free log irradiance.")
 
 
-def findings(rows: list[dict]) -> list[str]:
-    """Plain-language sentences on what gradient events gain and lose, from the numbers."""
-    out = []
-    med = {e: float(np.median([r[f"{e}_flicker_per_pixel_s"] for r in rows]))
-           for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]}
-    if "dvs" in med and "gradient" in med:
-        out.append("Median flicker-induced rate: " + ", ".join(f"{EMULATORS[e].label} {v:.3g}" for e, v in med.items())
-                   + " events per pixel per second.")
-        flickering = [r for r in rows if r["dvs_flicker_per_pixel_s"] > 1.0]
-        if flickering:
-            ratio = np.median([r["dvs_flicker_per_pixel_s"] / max(r["gradient_flicker_per_pixel_s"], 1.0)
-                               for r in flickering])
-            out.append(f"**Gain:** where the flicker reaches the DVS (>1 event/pixel/s, {len(flickering)} of "
-                       f"{len(rows)} runs), gradient events carry about {ratio:.3g}x fewer flicker-induced events "
-                       "(median ratio). A lamp that dims the whole view shifts every log intensity alike, which "
-                       "leaves spatial gradients unchanged; what leaks through comes from borders between regions "
-                       "lit by different lamps and from dim pixels whose photoreceptors lag bright ones.")
-    if "dvs_noise_per_pixel_s" in rows[0] and "gradient_noise_per_pixel_s" in rows[0]:
-        nd = float(np.median([r["dvs_noise_per_pixel_s"] for r in rows]))
-        ng = float(np.median([r["gradient_noise_per_pixel_s"] for r in rows]))
-        out.append(f"**Cost:** noise-induced rate (median) DVS {nd:.3g}, gradient {ng:.3g} events per pixel per "
-                   "second. A gradient comparator whose gradient sits near one of its thresholds toggles with "
-                   "the pixel noise; comparator hysteresis (`hysteresis_ln`) and resolution compression cut this, "
-                   "the DVS's reset-to-level scheme avoids it.")
-        if "hysteresis_ln" in rows[0]:
-            for h in sorted({r["hysteresis_ln"] for r in rows}):
-                sel = [r["gradient_noise_per_pixel_s"] for r in rows if r["hysteresis_ln"] == h]
-                out.append(f"With hysteresis {h} ln: gradient noise-induced rate {np.median(sel):.3g} events per "
-                           "pixel per second (median).")
-    for m in [k[:-5] for k in rows[0] if k.endswith("_ssim")]:
-        scores = [r[f"{m}_ssim"] for r in rows if np.isfinite(r[f"{m}_ssim"])]
-        if scores:
-            out.append(f"{m}: mean SSIM {np.mean(scores):.3f} against the flicker-free reference "
-                       f"({len(scores)} of {len(rows)} runs).")
-    out.append("Gradient events need no APS frames to reconstruct a full image (a Poisson solve of the decoded "
-               "gradients plus one global level); brightness events alone integrate changes only, so on a mostly "
-               "static scene their events-only reconstructions (direct) stay near flat, and the complementary "
-               "filter relies on APS frames.")
-    return out
-
-
-def write_report(folder: Path, study: Study, rows: list[dict], made: list) -> None:
-    parts = [f"# Study: {study.name}", "", study.description, "",
-             f"gevsim {gevsim.__version__}; {len(rows)} runs; config in `config.toml`, every number in "
-             "`results.csv` / `results.json`.", "", "## Findings", ""]
-    parts += [f"- {s}" for s in findings(rows) + render_floor_findings(rows)]
-    parts += ["", "How the numbers are made: every run is emulated four times on the same scene and seed: as is, "
-              "with each lamp at its mean (no flicker), with an ideal pixel as well, and the render-noise floor "
-              "(ideal pixel, lamps at their mean, the rendered images' Monte Carlo error redrawn at the lamp "
-              "frequency). Flicker-induced events = run minus no-flicker; noise-induced = no-flicker minus ideal; "
-              "render-noise floor = floor run minus ideal. Reconstructions are scored with "
-              "EVREAL's MSE/SSIM against the flicker-free log irradiance.", ""]
-    for name, caption in made:
+def write_report(folder: Path, study: Study, rows: list[dict], made: list, maps_made: list) -> None:
+    n_rep = rows[0]["repeats"]
+    parts = [f"# Study: {study.name}", "", study.description, ""]
+    head = [m for m in made if m[0] == "headline.png"]
+    for name, caption in head:
         parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    parts += ["## Answer", "", " ".join(answer(rows, study)), "",
+              f"gevsim {gevsim.__version__}; {len(rows)} runs x {n_rep} repeats; config in `config.toml`, every "
+              "number in `results.csv` / `results.json`, per-pixel maps in `maps.npz`.", "", "## Findings", ""]
+    parts += [f"- {s}" for s in findings(rows, study) + render_floor_findings(rows)]
+    parts += ["", METHOD_TEXT, ""]
+    for name, caption in made:
+        if name != "headline.png":
+            parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    if maps_made:
+        parts += ["## Where flicker events come from", ""]
+        parts += [f"- {s}" for s in map_findings(rows)] + [""]
+        for name, caption in maps_made:
+            parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
     parts += ["## Runs", "", key_table(rows, study), ""]
     (folder / "report.md").write_text("\n".join(parts))
 
 
+def write_maps(folder: Path, study: Study, out: Path, rows: list[dict]) -> dict[str, dict]:
+    """Every run's maps (from ``runs/<id>/maps.npz``) into one ``maps.npz``, keys ``<run id>/<name>``."""
+    collected, flat = {}, {}
+    for row in rows:
+        with np.load(out / "runs" / row["id"] / "maps.npz") as data:
+            collected[row["id"]] = {k: data[k] for k in data.files}
+        flat.update({f"{row['id']}/{k}": v for k, v in collected[row["id"]].items()})
+    with open(folder / "maps.npz", "wb") as fh:
+        np.savez_compressed(fh, **flat)
+    return collected
+
+
 def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path:
-    """results.csv/json, plots, report.md and config.toml, staged then moved in next to ``runs/``."""
+    """results.csv/json, maps.npz, figures, report.md and config.toml, staged then moved in next to ``runs/``."""
     import os
     import shutil
     import tempfile
 
+    from gevsim.plots import _pyplot
+
     out = Path(out)
+    assert all(row["id"] == run_id(study, p) for row, p in zip(rows, study.runs()))
     stage = Path(tempfile.mkdtemp(prefix=".outputs-partial-", dir=out))
     try:
         write_table(stage, rows)
-        made = plots(stage, study, rows)
-        write_report(stage, study, rows, made)
+        maps = write_maps(stage, study, out, rows)
+        plt = _pyplot()
+        made = [m for m in (study_plots.headline(stage, study, rows, plt), study_plots.rates(stage, study, rows, plt),
+                            study_plots.quality(stage, study, rows, plt), study_plots.spectrum(stage, study, rows, plt),
+                            study_plots.pareto(stage, rows, plt)) if m]
+        maps_made = [study_plots.flicker_maps(stage, study, row, maps[row["id"]], k, plt) for k, row in enumerate(rows)]
+        write_report(stage, study, rows, made, maps_made)
         (stage / "config.toml").write_text(study.text)
+        for old in out.glob("maps_*.png"):  # an earlier report's panels (the study may have fewer runs now)
+            old.unlink()
         for item in stage.iterdir():
             os.replace(item, out / item.name)
     finally:
@@ -320,16 +317,15 @@ def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path
 
 
 def comparison_table(rows: list[dict], study: Study) -> str:
-    """Per run and emulator: events/s, flicker-induced events per pixel per second and the best
-    reconstruction's SSIM/MSE (the demo's table)."""
+    """Per run and emulator: events/s, flicker-induced and noise-induced events per pixel per second
+    with 95 % intervals, and the best reconstruction's SSIM (the demo's table)."""
     lines = []
     for row in rows:
-        label = ", ".join(f"{a}={row[a]}" for a in study.axes)
-        lines.append(f"\n{label}")
+        lines.append(f"\n{_label(row, study)} ({row['repeats']} repeats; DVS/gradient {ratio_text(row)})")
         if "render_se_ln" in row:
             lines.append(f"  render: {_render_spp(row)} spp, ln error {_render_error(row)}")
-        lines.append(f"  {'emulator':12s} {'events/s':>11s} {'flicker ev/px/s':>16s} {'render floor':>13s} "
-                     f"{'noise ev/px/s':>14s} {'best recon':>14s} {'SSIM':>6s} {'MSE':>7s}")
+        lines.append(f"  {'emulator':12s} {'events/s':>10s}  {'flicker ev/px/s [95 %]':40s} "
+                     f"{'noise ev/px/s [95 %]':40s} {'best recon':>12s} {'SSIM':>6s}")
         for e in EMULATORS:
             if f"{e}_events_per_s" not in row:
                 continue
@@ -337,7 +333,6 @@ def comparison_table(rows: list[dict], study: Study) -> str:
                       if entry.emulator == e and f"{m}_ssim" in row and np.isfinite(row[f"{m}_ssim"])]
             best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
             ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
-            mse = f"{row[f'{best}_mse']:7.4f}" if best else f"{'-':>7s}"
-            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:11.4g} {row[f'{e}_flicker_per_pixel_s']:16.4g} "
-                         f"{_floor(row, e):>13s} {row[f'{e}_noise_per_pixel_s']:14.4g} {best or '-':>14s} {ssim} {mse}")
+            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:10.4g}  {fmt(row, f'{e}_flicker_per_pixel_s'):40s} "
+                         f"{fmt(row, f'{e}_noise_per_pixel_s'):40s} {best or '-':>12s} {ssim}")
     return "\n".join(lines)

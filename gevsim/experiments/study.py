@@ -54,32 +54,30 @@ import itertools
 import json
 import math
 import os
-import shutil
-import time
 from collections.abc import Callable
+from concurrent.futures import Executor, as_completed
 from pathlib import Path
 
 import numpy as np
 
-import gevsim
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
-from gevsim.io import atomic_write_text
+from gevsim.io import atomic_path
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
-              "frame_rate_hz", "seed", "methods", "render", "chunk_steps")
+              "frame_rate_hz", "seed", "methods", "render", "chunk_steps", "repeats")
 #: Sweep axes that override a sensor preset parameter (see gevsim.pixel.presets.with_overrides).
 SENSOR_AXES = ("threshold_mismatch_ln", "cutoff_hz", "max_cutoff_hz", "dark_current_a", "read_noise_v",
                "pixel_pitch_m", "fill_factor", "refractory_s", "threshold_on_ln", "threshold_off_ln")
 AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicker_scale", "scene", "sensor",
         "thresholds_ln", "hysteresis_ln") + SENSOR_AXES
-#: Alternation frequency of the render-noise floor when the swept lamp is steady.
-DEFAULT_FLOOR_HZ = 100.0
+#: Repeats (noise seeds) per run when ``[study] repeats`` is not given.
+DEFAULT_REPEATS = 3
 WAVEFORMS = ("native", "pwm", "sinusoid", "fluorescent", "sodium_hid", "incandescent", "dc")
 
 
@@ -159,7 +157,8 @@ def load_study(path: str | Path) -> Study:
             "step_s": float(r.number(st, "step_s", "study", 2e-5, positive=True)),
             "frame_rate_hz": float(r.number(st, "frame_rate_hz", "study", 500.0, positive=True)),
             "chunk_steps": r.number(st, "chunk_steps", "study", 256, positive=True, integer=True),
-            "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {}))}
+            "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {})),
+            "repeats": r.number(st, "repeats", "study", DEFAULT_REPEATS, positive=True, integer=True)}
     return Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
                  text=path.read_text(), description=str(st.get("description", "")))
 
@@ -230,99 +229,103 @@ def flicker_frequency_hz(study: Study, params: dict, cfg: EmulationConfig) -> fl
 
 
 def run_id(study: Study, params: dict) -> str:
-    payload = json.dumps({"base": study.base, "params": params}, sort_keys=True, default=str)
+    """Identity of a run: its base settings and parameters (not the number of repeats, so a study given
+    more repeats keeps the finished ones)."""
+    base = {k: v for k, v in study.base.items() if k != "repeats"}
+    payload = json.dumps({"base": base, "params": params}, sort_keys=True, default=str)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
-def event_rate_spectrum(events: np.ndarray, duration_s: float, *,
-                        bin_s: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
-    """Amplitude spectrum of the event rate (events/s per Hz bin), for the harmonics plot."""
-    counts, _ = np.histogram(events["t"] * 1e-6, bins=max(2, int(round(duration_s / bin_s))), range=(0, duration_s))
-    rate = counts / bin_s
-    amp = np.abs(np.fft.rfft(rate - rate.mean())) / len(rate)
-    return np.fft.rfftfreq(len(rate), bin_s), amp
+def run_jobs(study: Study) -> list[tuple[dict, int]]:
+    """Every (run parameters, repeat) of a study, in sweep order."""
+    return [(params, r) for params in study.runs() for r in range(study.base["repeats"])]
 
 
-def execute_run(study: Study, params: dict, folder: Path, *, cache_dir: str | os.PathLike | None = None) -> dict:
-    """Emulate a run and its counterfactuals, score reconstructions; return the result row."""
-    from gevsim.emulation import prepare, run
-    from gevsim.emulation.driver import render_noise_floor
-    from gevsim.emulation.summary import summarize
-    from gevsim.evaluation import reconstruct_file
+def _prerender(study: Study, jobs: list[tuple[dict, int]], cache_dir: str | os.PathLike) -> None:
+    """Render (or find in the cache) every basis the jobs need, here, once: workers then only load them."""
+    from gevsim.emulation import prepare
 
-    cfg = run_config(study, params)
-    folder.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
-    variants = {"run": dict(), "no_flicker": dict(flicker=False), "ideal": dict(flicker=False, noise=False),
-                "render_floor": dict(noise=False)}
-    stats, info = {}, {}
-    setup = prepare(cfg, cache_dir=cache_dir)  # rendered (or loaded) once for all four
-    frequency = flicker_frequency_hz(study, params, cfg)
-    for name, kw in variants.items():
-        # The render-noise floor: ideal pixel, lamps at their mean, render noise redrawn at the lamp frequency.
-        use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" else setup
-        info[name] = run(cfg, folder / f"{name}.h5", setup=use, **kw)
-        stats[name] = summarize(folder / f"{name}.h5")
-    pixels = info["run"]["width"] * info["run"]["height"]
-    duration = info["run"]["duration_s"]
-    row = {"id": run_id(study, params), **{k: v for k, v in params.items()}, "pixels": pixels,
-           "duration_s": duration, "steps": info["run"]["steps"],
-           "flicker_frequency_hz": frequency}
-    quality = setup.render_quality
-    row.update({"render_spp_min": quality["spp_min"], "render_spp_max": quality["spp_max"],
-                "render_se_ln": quality["se_ln"]["at_percentile"], "render_se_percentile": quality["percentile"],
-                "render_target_ln": quality["target_ln"], "render_target_reached": quality["reached"]})
-    for emulator in study.base["emulators"]:
-        stream = EMULATORS[emulator].stream
-        counts = {k: stats[k][stream]["count"] for k in variants}
-        row[f"{emulator}_events_per_s"] = counts["run"] / duration
-        row[f"{emulator}_event_probability"] = stats["run"][stream]["event_probability"]
-        row[f"{emulator}_flicker_per_pixel_s"] = (counts["run"] - counts["no_flicker"]) / (pixels * duration)
-        row[f"{emulator}_noise_per_pixel_s"] = (counts["no_flicker"] - counts["ideal"]) / (pixels * duration)
-        row[f"{emulator}_scene_per_pixel_s"] = counts["ideal"] / (pixels * duration)
-        row[f"{emulator}_render_floor_per_pixel_s"] = (counts["render_floor"] - counts["ideal"]) / (pixels * duration)
-    if "dvs_flicker_per_pixel_s" in row and "gradient_flicker_per_pixel_s" in row:
-        row["flicker_rejection_ratio"] = row["dvs_flicker_per_pixel_s"] / max(row["gradient_flicker_per_pixel_s"],
-                                                                              1.0 / (pixels * duration))
-    for method in study.base["methods"]:
-        if METHODS[method].needs_aps and not cfg.aps:  # the sensor has no APS: nothing to fuse
-            row.update({f"{method}_{k}": float("nan") for k in ("mse", "ssim", "psnr")})
-            continue
-        rec, _, _ = reconstruct_file(folder / "run.h5", method, reference="no-flicker")
-        for k, v in rec.mean_metrics().items():
-            row[f"{method}_{k}"] = v
-    if "dvs" in study.base["emulators"]:
-        from gevsim.io import EventReader
-
-        with EventReader(folder / "run.h5") as r:
-            f, amp = event_rate_spectrum(r.read("events"), duration)
-        row["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
-    row["seconds"] = time.perf_counter() - start
-    row["gevsim"] = gevsim.__version__
-    return row
+    seen = set()
+    for params, _ in jobs:
+        cfg = run_config(study, params)
+        key = json.dumps([cfg.scene, cfg.render, cfg.sensor, cfg.thresholds_ln, cfg.sensor_overrides],
+                         sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            prepare(cfg, cache_dir=cache_dir)
 
 
 def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
-              progress: Callable[[int, int], None] | None = None, keep_files: bool = False) -> list[dict]:
-    """Run (or resume) every run of a study into ``out``; returns the result rows in sweep order."""
+              executor: Executor | None = None, progress: Callable[[int, int], None] | None = None,
+              keep_files: bool = False) -> list[dict]:
+    """Run (or resume) every repeat of every run of a study into ``out``; returns one result row per
+    run (sweep order), with intervals over its repeats (:mod:`gevsim.experiments.aggregate`).
+
+    One job per (run, repeat) (:func:`gevsim.experiments.repeat.execute_repeat`); finished jobs
+    (``runs/<id>/r<k>.json``) are skipped, so interrupted studies resume and a study given more
+    repeats runs only the new ones. ``executor`` None runs the jobs here, one after another; an
+    executor (:func:`gevsim.experiments.executors.make_executor`) runs them in its workers, one numba
+    thread each, after the bases are rendered here once into ``cache_dir`` (default
+    ``out/render-cache``). The numbers do not depend on the executor. ``progress(done, total)``
+    counts jobs. One study at a time per ``out``.
+    """
+    from gevsim.experiments import repeat as rep
+
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    jobs = run_jobs(study)
+    todo = [(p, r) for p, r in jobs if rep.finished_repeat(out, run_id(study, p), r) is None]
+    total, done = len(jobs), len(jobs) - len(todo)
+    if progress:
+        progress(done, total)
+    if executor is None:
+        futures = []
+        outcomes = (rep.execute_repeat(study, p, r, out, cache_dir=cache_dir, keep_files=keep_files)
+                    for p, r in todo)
+    else:
+        if cache_dir is None:
+            cache_dir = out / "render-cache"
+        if todo:
+            _prerender(study, todo, cache_dir)
+        futures = [executor.submit(rep.execute_repeat, study, p, r, str(out), cache_dir=str(cache_dir),
+                                   keep_files=keep_files, threads=1) for p, r in todo]
+        outcomes = (future.result() for future in as_completed(futures))
+    try:
+        for _ in outcomes:
+            done += 1
+            if progress:
+                progress(done, total)
+    finally:  # on the first failure: drop what has not started (finished repeats stay finished)
+        for future in futures:
+            future.cancel()
+    return collect(study, out)
+
+
+def collect(study: Study, out: str | os.PathLike) -> list[dict]:
+    """The result rows of a finished study (each run's repeats aggregated); each run's per-pixel maps
+    are written to ``runs/<id>/maps.npz``."""
+    from gevsim.experiments.aggregate import aggregate_run
+    from gevsim.experiments.repeat import finished_repeat, repeat_paths
+
+    out = Path(out)
     rows = []
-    all_params = study.runs()
-    for k, params in enumerate(all_params):
+    for params in study.runs():
         rid = run_id(study, params)
-        done = out / "runs" / f"{rid}.json"
-        if done.is_file():
-            rows.append(json.loads(done.read_text()))
-        else:
-            folder = out / "runs" / rid
-            row = execute_run(study, params, folder, cache_dir=cache_dir)
-            atomic_write_text(done, json.dumps(row, default=float))  # the marker: written last
-            if not keep_files:
-                shutil.rmtree(folder, ignore_errors=True)
-            rows.append(row)
-        if progress:
-            progress(k + 1, len(all_params))
+        records = [finished_repeat(out, rid, r) for r in range(study.base["repeats"])]
+        if any(r is None for r in records):
+            raise ConfigError(f"run {rid} has unfinished repeats; run the study again to finish them",
+                              source=str(out))
+        arrays = []
+        for r in range(study.base["repeats"]):
+            with np.load(repeat_paths(out, rid, r)[1]) as data:
+                arrays.append({k: data[k] for k in data.files})
+        group = flicker_group(study, params.get("scene", study.base["scene"]))
+        row, maps = aggregate_run(records, arrays, study.base["emulators"], study.base["methods"], group)
+        row["flicker_group"] = group
+        with atomic_path(out / "runs" / rid / "maps.npz") as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **maps)
+        rows.append(row)
     return rows
 
 

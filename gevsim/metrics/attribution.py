@@ -124,13 +124,40 @@ class PhaseLocked:
                 "events": self.events, "amplitude": [float(2 * abs(c)) for c in self.harmonics]}
 
 
-def _modulation_power(phases: np.ndarray, counts_scale: float, harmonics: int) -> tuple[np.ndarray, float]:
-    """Complex coefficients c_m and the bias-corrected sum of |2 c_m|^2 / 2 (the modulation's variance)."""
-    m = np.arange(1, harmonics + 1)
-    c = np.exp(-2j * np.pi * np.outer(m, phases)).sum(axis=1) * counts_scale
-    # A Poisson process of N uniform phases gives E|c_m|^2 = N counts_scale^2 for every m: subtract it.
-    power = float(np.sum(2.0 * (np.abs(c) ** 2 - phases.size * counts_scale**2)))
-    return c, power
+#: Phase bins of a folded event stream: quantising phases to 1/4096 of the period attenuates the
+#: m-th harmonic by sinc(m / 4096), under 2e-5 for m <= 8.
+PHASE_BINS = 4096
+
+
+def phase_histogram(t_s, *, period_s: float, bins: int = PHASE_BINS) -> np.ndarray:
+    """Event counts (int64, ``bins``) over the lamp phase [0, 1) of times ``t_s`` (s).
+
+    Histograms of repeats of the same run add: fold each, sum, then call
+    :func:`phase_locked_from_histogram` with the summed duration."""
+    if not (period_s > 0 and math.isfinite(period_s)) or bins < 2:
+        raise ValueError(f"phase_histogram: period_s must be a positive number and bins >= 2, got "
+                         f"{period_s!r}, {bins!r}")
+    t = np.asarray(t_s, float).ravel()
+    index = np.floor(np.mod(t / period_s, 1.0) * bins).astype(np.int64)
+    return np.bincount(np.minimum(index, bins - 1), minlength=bins).astype(np.int64)
+
+
+def _coefficients(counts: np.ndarray, harmonics: int, scale: float) -> np.ndarray:
+    """c_m = scale sum_b n_b exp(-2 pi i m phi_b) at bin centres, for one histogram (B,) or many (R, B)."""
+    bins = counts.shape[-1]
+    phi = (np.arange(bins) + 0.5) / bins
+    basis = np.exp(-2j * np.pi * np.outer(phi, np.arange(1, harmonics + 1)))  # (B, M)
+    return (counts @ basis) * scale
+
+
+def _power(c: np.ndarray, n: np.ndarray | float, scale: float) -> np.ndarray:
+    """Bias-corrected variance of the modulation, sum_m 2 (|c_m|^2 - N scale^2): a Poisson process of
+    N uniform phases has E|c_m|^2 = N scale^2 for every m."""
+    return np.sum(2.0 * (np.abs(c) ** 2 - np.asarray(n)[..., None] * scale**2), axis=-1)
+
+
+def _signed_root(p):
+    return np.sign(p) * np.sqrt(np.abs(p))
 
 
 def phase_locked_rate(t_s, *, period_s: float, duration_s: float, n_pixels: int, harmonics: int = 4,
@@ -149,33 +176,44 @@ def phase_locked_rate(t_s, *, period_s: float, duration_s: float, n_pixels: int,
     Poisson term the estimate removes); the
     p-value is that of the phase-randomised null (uniform phases, as events
     that no lamp causes would have), from the same number of simulated nulls.
-    ``duration_s`` should hold whole periods.
+    ``duration_s`` should hold whole periods. Phases are folded into
+    :data:`PHASE_BINS` bins (:func:`phase_histogram`).
     """
+    return phase_locked_from_histogram(phase_histogram(t_s, period_s=period_s), duration_s=duration_s,
+                                       n_pixels=n_pixels, harmonics=harmonics, confidence=confidence,
+                                       n_boot=n_boot, seed=seed)
+
+
+def phase_locked_from_histogram(counts, *, duration_s: float, n_pixels: int, harmonics: int = 4,
+                                confidence: float = 0.95, n_boot: int = 400, seed: int = 0) -> PhaseLocked:
+    """:func:`phase_locked_rate` from a phase histogram (:func:`phase_histogram`, or the sum of
+    several repeats' histograms with ``duration_s`` their summed duration). The bootstrap
+    resamples the N events multinomially over the bins; the null draws N uniform phases."""
     _check_confidence(confidence)
-    if not (period_s > 0 and duration_s > 0 and n_pixels >= 1 and harmonics >= 1):
-        raise ValueError(f"phase_locked_rate: period_s, duration_s, n_pixels and harmonics must be positive, got "
-                         f"{period_s!r}, {duration_s!r}, {n_pixels!r}, {harmonics!r}")
-    t = np.asarray(t_s, float).ravel()
+    counts = np.asarray(counts)
+    if not (duration_s > 0 and n_pixels >= 1 and harmonics >= 1 and n_boot >= 1) or counts.ndim != 1:
+        raise ValueError(f"phase_locked_rate: duration_s, n_pixels, harmonics and n_boot must be positive and "
+                         f"counts one histogram, got {duration_s!r}, {n_pixels!r}, {harmonics!r}, {n_boot!r}")
+    if np.any(counts < 0) or counts.size < 2 * harmonics + 1:
+        raise ValueError(f"phase_locked_rate: need non-negative counts in at least {2 * harmonics + 1} bins")
+    n = int(counts.sum())
     scale = 1.0 / (n_pixels * duration_s)
-    phases = np.mod(t / period_s, 1.0)
-    c, power = _modulation_power(phases, scale, harmonics)
-
-    def signed_root(p):
-        return math.copysign(math.sqrt(abs(p)), p)
-
+    c = _coefficients(counts.astype(float), harmonics, scale)
+    power = float(_power(c, n, scale))
     rng = np.random.default_rng(seed)
-    boot = np.empty(n_boot)
-    null = np.empty(n_boot)
-    for i in range(n_boot):
-        sample = phases[rng.integers(0, phases.size, phases.size)] if phases.size else phases
-        boot[i] = _modulation_power(sample, scale, harmonics)[1]
-        null[i] = signed_root(_modulation_power(rng.random(phases.size), scale, harmonics)[1])
+    if n:
+        boot = _power(_coefficients(rng.multinomial(n, counts / n, size=n_boot).astype(float), harmonics, scale),
+                      n, scale)
+        null = _signed_root(_power(_coefficients(
+            rng.multinomial(n, np.full(counts.size, 1.0 / counts.size), size=n_boot).astype(float),
+            harmonics, scale), n, scale))
+    else:
+        boot = null = np.zeros(n_boot)
     # Resampling with replacement adds back the Poisson term that the estimate removes: re-centre the
     # replicates on the estimate (squared scale) before taking roots and percentiles.
-    boot = np.array([signed_root(b) for b in boot - (boot.mean() - power)])
-    estimate = signed_root(power)
+    boot = _signed_root(boot - (boot.mean() - power))
+    estimate = float(_signed_root(power))
     lo, hi = np.percentile(boot, [50 * (1 - confidence), 50 * (1 + confidence)])
     p_value = float((1 + np.sum(null >= estimate)) / (1 + n_boot))
-    rms = Interval(estimate, float(lo), float(hi), confidence, int(phases.size), "bootstrap percentile")
-    return PhaseLocked(rms=rms, harmonics=c, mean_rate=float(phases.size * scale), p_value=p_value,
-                       events=int(phases.size))
+    rms = Interval(estimate, float(lo), float(hi), confidence, n, "bootstrap percentile")
+    return PhaseLocked(rms=rms, harmonics=c, mean_rate=float(n * scale), p_value=p_value, events=n)

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from gevsim.cli import main
-from gevsim.experiments import study as study_mod
+from gevsim.experiments import repeat as repeat_mod
 from gevsim.experiments.study import load_study, run_study
 
 DATA = Path(__file__).parents[1] / "data"
@@ -72,22 +72,22 @@ def test_rerun_resumes_without_recomputing(tmp_path, monkeypatch):
     study = load_study(write_study(tmp_path))
     out = tmp_path / "out"
     first = run_study(study, out, cache_dir=tmp_path / "c")
-    markers = {p: p.read_bytes() for p in (out / "runs").glob("*.json")}
-    assert len(markers) == 2
+    markers = {p: p.read_bytes() for p in (out / "runs").glob("*/r*.json")}
+    assert len(markers) == 2 * study.base["repeats"]
 
     def fail(*args, **kwargs):
         raise AssertionError("a finished run was recomputed")
 
-    monkeypatch.setattr(study_mod, "execute_run", fail)
+    monkeypatch.setattr(repeat_mod, "execute_repeat", fail)
     again = run_study(study, out, cache_dir=tmp_path / "c")
-    assert again == json.loads(json.dumps(first, default=float))
-    assert {p: p.read_bytes() for p in (out / "runs").glob("*.json")} == markers
+    assert json.dumps(again) == json.dumps(first)
+    assert {p: p.read_bytes() for p in (out / "runs").glob("*/r*.json")} == markers
 
 
 def test_a_killed_run_leaves_nothing_that_looks_finished(tmp_path, monkeypatch):
     study = load_study(write_study(tmp_path))
     out = tmp_path / "out"
-    real = study_mod.execute_run
+    real = repeat_mod.execute_repeat
     calls = []
 
     def killed_on_second(*args, **kwargs):
@@ -96,11 +96,11 @@ def test_a_killed_run_leaves_nothing_that_looks_finished(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(study_mod, "execute_run", killed_on_second)
+    monkeypatch.setattr(repeat_mod, "execute_repeat", killed_on_second)
     with pytest.raises(KeyboardInterrupt):
         run_study(study, out, cache_dir=tmp_path / "c")
-    assert len(list((out / "runs").glob("*.json"))) == 1 and not (out / "results.csv").exists()
-    monkeypatch.setattr(study_mod, "execute_run", real)
+    assert len(list((out / "runs").glob("*/r*.json"))) == 1 and not (out / "results.csv").exists()
+    monkeypatch.setattr(repeat_mod, "execute_repeat", real)
     assert len(run_study(study, out, cache_dir=tmp_path / "c")) == 2
 
 

@@ -1,0 +1,176 @@
+"""One job of a study: repeat r of a run, with its counterfactuals (common random numbers).
+
+Repeat r of a run uses the noise seed ``study seed + r`` for the run as is and for
+each of its counterfactuals (DESIGN.md, Counterfactual runs): with every lamp at
+its mean (``no_flicker``), with an ideal pixel as well (``ideal``), and the
+render-noise floor (:func:`gevsim.emulation.driver.render_noise_floor`). Sharing
+the seed pairs them: the pixel noise that the flicker does not change is drawn
+alike in all of them, so their differences carry less noise than independent
+runs would (common random numbers). Repeats differ only in the seed, so their
+differences are independent draws of the same quantity, and their spread gives
+the interval (:mod:`gevsim.experiments.aggregate`).
+
+A job writes ``runs/<id>/r<k>.npz`` (per-pixel event counts, phase-folded event
+histograms, the scene's mean photocurrent and dominant light group) and then
+``runs/<id>/r<k>.json`` (counts, reconstruction scores), the marker that it is
+finished, each atomically. Jobs share nothing but the render cache, so they run
+in any order, in any process (:mod:`gevsim.experiments.executors`), and give the
+same numbers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+import gevsim
+from gevsim.emulation.emulators import EMULATORS
+from gevsim.evaluation.methods import METHODS
+from gevsim.experiments.study import Study, flicker_frequency_hz, run_config, run_id
+from gevsim.io import atomic_path, atomic_write_text
+from gevsim.metrics.attribution import phase_histogram
+
+#: The four emulations of a repeat: name -> keyword arguments of :func:`gevsim.emulation.run`.
+VARIANTS = {"run": {}, "no_flicker": {"flicker": False}, "ideal": {"flicker": False, "noise": False},
+            "render_floor": {"noise": False}}
+#: Variants whose per-pixel counts and phase histograms are kept (flicker maps, phase-locked estimate).
+FOLDED = ("run", "no_flicker")
+#: Alternation frequency of the render-noise floor when the swept lamp is steady.
+DEFAULT_FLOOR_HZ = 100.0
+WINDOW_US = 100_000  # events are read 0.1 s at a time
+
+
+def repeat_seed(study: Study, repeat: int) -> int:
+    """Noise seed of repeat ``repeat``: the study's seed plus the repeat (repeat 0 is ``gevsim emulate``'s run)."""
+    return int(study.base["seed"]) + int(repeat)
+
+
+def repeat_paths(out: str | os.PathLike, rid: str, repeat: int) -> tuple[Path, Path, Path]:
+    """(marker .json, arrays .npz, folder of its HDF5 files) of a repeat."""
+    folder = Path(out) / "runs" / rid
+    return folder / f"r{repeat}.json", folder / f"r{repeat}.npz", folder / f"r{repeat}"
+
+
+def finished_repeat(out: str | os.PathLike, rid: str, repeat: int) -> dict | None:
+    """The record of a finished repeat, or None."""
+    marker, arrays, _ = repeat_paths(out, rid, repeat)
+    try:
+        record = json.loads(marker.read_text())
+    except (OSError, ValueError):
+        return None
+    return record if arrays.is_file() and record.get("repeat") == repeat else None
+
+
+def event_spectrum(t_s: np.ndarray, duration_s: float, *, bin_s: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitude spectrum of the event rate (events/s per Hz bin), for the harmonics plot."""
+    counts, _ = np.histogram(t_s, bins=max(2, int(round(duration_s / bin_s))), range=(0, duration_s))
+    rate = counts / bin_s
+    amp = np.abs(np.fft.rfft(rate - rate.mean())) / len(rate)
+    return np.fft.rfftfreq(len(rate), bin_s), amp
+
+
+def _fold(path: Path, stream: str, periods: dict[str, float], shape: tuple[int, int]) -> dict:
+    """Per-pixel counts and, per light group, the phase histogram of a stream, read window by window."""
+    from gevsim.io import EventReader
+
+    h, w = shape
+    per_pixel = np.zeros(h * w, np.int64)
+    phases = {g: 0 for g in periods}
+    with EventReader(path) as r:
+        for start in range(0, int(r.t_end_us) + 1, WINDOW_US):
+            ev = r.read(stream, start, start + WINDOW_US)
+            per_pixel += np.bincount(ev["y"].astype(np.int64) * w + ev["x"], minlength=h * w)
+            t_s = ev["t"] * 1e-6
+            for g, period in periods.items():
+                phases[g] = phases[g] + phase_histogram(t_s, period_s=period)
+    return {"pixels": per_pixel.reshape(h, w), "phases": phases}
+
+
+def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLike, *,
+                   cache_dir: str | os.PathLike | None = None, keep_files: bool = False,
+                   threads: int | None = None) -> dict:
+    """Emulate repeat ``repeat`` of a run and its counterfactuals, score reconstructions, write the
+    repeat's arrays and marker; return its record (picklable: what executors run).
+
+    ``threads`` sets numba's threads for this job (a worker of a process pool runs one job per
+    core, so 1 there); None leaves numba's default."""
+    from gevsim.emulation import prepare, run
+    from gevsim.emulation.driver import render_noise_floor
+    from gevsim.emulation.summary import summarize
+    from gevsim.evaluation import reconstruct_file
+
+    if threads is not None:
+        import numba
+
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    start = time.perf_counter()
+    rid = run_id(study, params)
+    marker, arrays, folder = repeat_paths(out, rid, repeat)
+    folder.mkdir(parents=True, exist_ok=True)
+    cfg = run_config(study, params)
+    cfg = dataclasses.replace(cfg, seed=repeat_seed(study, repeat))
+    cfg = dataclasses.replace(cfg, text=cfg.to_toml())
+    setup = prepare(cfg, cache_dir=cache_dir)  # rendered once (cache), shared by the four variants
+    frequency = flicker_frequency_hz(study, params, cfg)
+    m = setup.manifest
+    h, w = m.render.height, m.render.width
+    periods = {g: wf.period_s for g, wf in zip(m.group_names, setup.waveforms) if wf.period_s}
+    counts, folded, stats = {}, {}, None
+    for name, kw in VARIANTS.items():
+        use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" \
+            else setup
+        info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
+        counts[name] = info["counts"]
+        if name == "run":
+            stats = summarize(folder / "run.h5")
+            summary = info
+        if name in FOLDED:
+            folded[name] = {e: _fold(folder / f"{name}.h5", EMULATORS[e].stream, periods, (h, w))
+                            for e in study.base["emulators"]}
+    record = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
+              "width": w, "height": h, "duration_s": summary["duration_s"], "steps": summary["steps"],
+              "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts,
+              "event_probability": {e: stats[EMULATORS[e].stream]["event_probability"]
+                                    for e in study.base["emulators"]},
+              "render": _render_quality(setup.render_quality), "metrics": {}}
+    for method in study.base["methods"]:
+        if METHODS[method].needs_aps and not cfg.aps:  # the sensor has no APS: nothing to fuse
+            record["metrics"][method] = {k: float("nan") for k in ("mse", "ssim", "psnr")}
+            continue
+        rec, _, _ = reconstruct_file(folder / "run.h5", method, reference="no-flicker")
+        record["metrics"][method] = {k: float(v) for k, v in rec.mean_metrics().items()}
+    if "dvs" in study.base["emulators"] and repeat == 0:
+        from gevsim.io import EventReader
+
+        with EventReader(folder / "run.h5") as r:
+            f, amp = event_spectrum(r.read("events")["t"] * 1e-6, summary["duration_s"])
+        record["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
+    mean_basis = setup.current_basis.mean(axis=0)  # (K, H, W), A per unit waveform
+    data = {"mean_current_a": mean_basis.sum(axis=0),
+            "chip_lux": np.tensordot(setup.chip_lux_per_a, mean_basis, axes=1), "dominant_group": np.argmax(mean_basis, axis=0).astype(np.int16),
+            "group_names": np.array(m.group_names)}
+    for variant, per_emulator in folded.items():
+        for e, f in per_emulator.items():
+            data[f"pixels/{variant}/{e}"] = f["pixels"].astype(np.int32)
+            for g, hist in f["phases"].items():
+                data[f"phases/{variant}/{e}/{g}"] = hist
+    with atomic_path(arrays) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **data)
+    record["seconds"] = time.perf_counter() - start
+    record["gevsim"] = gevsim.__version__
+    atomic_write_text(marker, json.dumps(record, default=float))  # the marker: written last
+    if not keep_files:
+        shutil.rmtree(folder, ignore_errors=True)
+    return record
+
+
+def _render_quality(quality: dict) -> dict:
+    return {"spp_min": quality["spp_min"], "spp_max": quality["spp_max"], "se_ln": quality["se_ln"]["at_percentile"],
+            "percentile": quality["percentile"], "target_ln": quality["target_ln"], "reached": quality["reached"]}
