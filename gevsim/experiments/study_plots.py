@@ -96,26 +96,40 @@ def errorbars(ax, xs, rows: list[dict], key: str, *, color=None, marker="o", lab
         yb = b if b_ok else None
         if ya is not None and yb is not None:
             ax.plot([xi, xi], [ya, yb], color=color, lw=1.2, alpha=0.8)
-        else:  # open-ended: an arrow from the finite end (or the estimate) to the edge
+        else:  # open-ended: drawn to the edge once the limits are final (open_ends)
             start = ya if ya is not None else (yb if yb is not None else e)
             if start is None or not np.isfinite(start) or (log and start <= 0):
                 continue
-            if ya is None:
-                ax.annotate("", xy=(xi, 0.0), xycoords=("data", "axes fraction"), xytext=(xi, start),
-                            arrowprops=dict(arrowstyle="->", color=color, lw=1.0))
-            if yb is None:
-                ax.annotate("", xy=(xi, 1.0), xycoords=("data", "axes fraction"), xytext=(xi, start),
-                            arrowprops=dict(arrowstyle="->", color=color, lw=1.0))
+            ax.__dict__.setdefault("_open_ends", []).append((xi, start, ya is None, yb is None, color))
     return line
+
+
+def open_ends(ax) -> None:
+    """Draw the open ends of intervals (to -inf / +inf, or to <= 0 on a log axis) as lines to the edge
+    of the final axes with an arrowhead there."""
+    ends = ax.__dict__.pop("_open_ends", [])
+    if not ends:
+        return
+    bottom, top = ax.get_ylim()
+    for xi, start, down, up, color in ends:
+        for flag, edge, marker in ((down, bottom, "v"), (up, top, "^")):
+            if flag:
+                ax.plot([xi, xi], [start, edge], color=color, lw=1.0, alpha=0.8)
+                ax.plot([xi], [edge], marker=marker, color=color, markersize=6, clip_on=False)
+    ax.set_ylim(bottom, top)
 
 
 def _finish(ax, xlabel, numeric, xs, labels, log_x):
     if numeric and log_x:
+        from matplotlib.ticker import NullFormatter
+
         ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
     if not numeric:
         ax.set_xticks(xs, labels, rotation=20)
     ax.set_xlabel(xlabel)
     ax.grid(alpha=0.3, which="both")
+    open_ends(ax)
 
 
 def _log_x(rows, x) -> bool:
@@ -131,26 +145,33 @@ def headline(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, st
     x = x_axis(study)
     _, label = series_labels(study)
     groups = list(dict.fromkeys(label(r) for r in rows))
-    fig, ax = plt.subplots(figsize=(8.5, 4.2))
+    fig, ax = plt.subplots(figsize=(8.5, 5.6))
     spread = np.geomspace(0.97, 1.03, len(groups)) if len(groups) > 1 and _log_x(rows, x) else np.ones(len(groups))
-    numeric, xs, labels = True, [], []
+    values = [r[k] for r in rows for k in ("flicker_rejection_ratio", "flicker_rejection_ratio_low")
+              if np.isfinite(r.get(k, math.nan))]
+    symlog = any(v <= 0 for v in values)  # flicker removed gradient events somewhere: show the sign
+    numeric, xs, labels, bound_label = True, [], [], "lower bound (gradient rate not distinguishable from zero)"
     for k, group in enumerate(groups):
         sel, xs, numeric, labels = _xy([r for r in rows if label(r) == group], x)
         off = spread[k] if numeric else 1.0
         xs_plot = xs if numeric else [v + 0.06 * (k - (len(groups) - 1) / 2) for v in xs]
-        line = errorbars(ax, xs_plot, sel, "flicker_rejection_ratio", label=group, offset=off)
+        line = errorbars(ax, xs_plot, sel, "flicker_rejection_ratio", label=group, offset=off, log=not symlog)
         bounds = [r.get("flicker_rejection_ratio_at_least") for r in sel]
         pts = [(xv * off, b) for xv, b in zip(xs_plot, bounds) if b]
         if pts:
-            ax.plot(*zip(*pts), "^", color=line.get_color(), markersize=8, markerfacecolor="none",
-                    label=f"{group}: at least (gradient rate not distinguishable from zero)")
+            ax.plot(*zip(*pts), "^", color=line.get_color(), markersize=8, markerfacecolor="none", label=bound_label)
+            bound_label = None
     ax.axhline(1.0, color="0.4", lw=0.8, ls="--")
-    ax.set_yscale("log")
+    if symlog:
+        ax.set_yscale("symlog", linthresh=0.1)
+        ax.axhline(0.0, color="0.2", lw=0.6)
+    else:
+        ax.set_yscale("log")
     ax.set_ylabel("DVS / gradient flicker-induced events")
     _finish(ax, AXIS_UNITS.get(x, (x,))[0], numeric, xs, labels, _log_x(rows, x))
-    ax.set_title(f"{study.name}: flicker rejection of gradient events (95 % Fieller intervals, "
-                 f"{rows[0]['repeats']} repeats)", fontsize=10)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
+    ax.set_title(f"{study.name}: flicker rejection of gradient events\n(95 % Fieller intervals, {rows[0]['repeats']} "
+                 "paired repeats; < 0: flicker removes gradient events)", fontsize=10)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, borderaxespad=0)
     fig.tight_layout()
     from gevsim.plots import save_figure
 

@@ -124,9 +124,9 @@ class PhaseLocked:
                 "events": self.events, "amplitude": [float(2 * abs(c)) for c in self.harmonics]}
 
 
-#: Phase bins of a folded event stream: quantising phases to 1/4096 of the period attenuates the
-#: m-th harmonic by sinc(m / 4096), under 2e-5 for m <= 8.
-PHASE_BINS = 4096
+#: Phase bins of a folded event stream: quantising phases to 1/512 of the period attenuates the
+#: m-th harmonic's amplitude by sinc(m / 512), under 1e-4 for m <= 4 (the default harmonics).
+PHASE_BINS = 512
 
 
 def phase_histogram(t_s, *, period_s: float, bins: int = PHASE_BINS) -> np.ndarray:
@@ -171,9 +171,9 @@ def phase_locked_rate(t_s, *, period_s: float, duration_s: float, n_pixels: int,
     from the first ``harmonics`` terms, with the Poisson bias ``N / (P T)^2``
     removed from each ``|c_m|^2`` (unbiased for the squared RMS; the square
     root of a negative estimate is reported as its negative). The interval is
-    a percentile bootstrap over events (seeded, ``n_boot`` resamples; the
-    replicates re-centred on the estimate, since resampling restores the
-    Poisson term the estimate removes); the
+    a percentile bootstrap over events (seeded, ``n_boot`` Poisson-bootstrap
+    resamples; the replicates re-centred on the estimate, since resampling
+    restores the Poisson term the estimate removes); the
     p-value is that of the phase-randomised null (uniform phases, as events
     that no lamp causes would have), from the same number of simulated nulls.
     ``duration_s`` should hold whole periods. Phases are folded into
@@ -201,14 +201,13 @@ def phase_locked_from_histogram(counts, *, duration_s: float, n_pixels: int, har
     c = _coefficients(counts.astype(float), harmonics, scale)
     power = float(_power(c, n, scale))
     rng = np.random.default_rng(seed)
-    if n:
-        boot = _power(_coefficients(rng.multinomial(n, counts / n, size=n_boot).astype(float), harmonics, scale),
-                      n, scale)
-        null = _signed_root(_power(_coefficients(
-            rng.multinomial(n, np.full(counts.size, 1.0 / counts.size), size=n_boot).astype(float),
-            harmonics, scale), n, scale))
-    else:
-        boot = null = np.zeros(n_boot)
+    # Poisson bootstrap (each bin's count redrawn as Poisson of itself: resampling events with a random
+    # total), and the null: Poisson counts of N / B in every bin (uniform phases). Each replicate's
+    # Poisson term uses its own total.
+    boot_counts = rng.poisson(counts, size=(n_boot, counts.size)).astype(float)
+    null_counts = rng.poisson(n / counts.size, size=(n_boot, counts.size)).astype(float)
+    boot = _power(_coefficients(boot_counts, harmonics, scale), boot_counts.sum(axis=1), scale)
+    null = _signed_root(_power(_coefficients(null_counts, harmonics, scale), null_counts.sum(axis=1), scale))
     # Resampling with replacement adds back the Poisson term that the estimate removes: re-centre the
     # replicates on the estimate (squared scale) before taking roots and percentiles.
     boot = _signed_root(boot - (boot.mean() - power))

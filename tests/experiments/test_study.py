@@ -9,6 +9,7 @@ import pytest
 
 from gevsim.cli import main
 from gevsim.experiments import repeat as repeat_mod
+from gevsim.experiments.executors import make_executor
 from gevsim.experiments.study import load_study, run_study
 
 DATA = Path(__file__).parents[1] / "data"
@@ -150,3 +151,33 @@ def test_study_methods_are_checked_before_any_work(tmp_path, capsys, methods, te
     cfg.write_text(body)
     assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "-q"]) == 2
     assert text in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
+PARALLEL_SWEEP = 'waveform = ["sinusoid"]\nmodulation = [0.8]\nfrequency_hz = [1000.0]\n'
+
+
+def _records(out):
+    """Every repeat's record without its timing, and its arrays' bytes."""
+    records = {}
+    for marker in sorted((out / "runs").glob("*/r*.json")):
+        record = json.loads(marker.read_text())
+        record.pop("seconds")
+        records[str(marker.relative_to(out))] = (record, marker.with_suffix(".npz").read_bytes())
+    return records
+
+
+def _rows(rows):
+    return json.dumps([{k: v for k, v in r.items() if k != "seconds"} for r in rows])
+
+
+@pytest.mark.parametrize("kind", ["local", "dask"])
+def test_executors_give_the_serial_results_bit_for_bit(tmp_path, kind):
+    if kind == "dask":
+        pytest.importorskip("dask.distributed", reason="the dask extra is not installed")
+    study = load_study(write_study(tmp_path, sweep=PARALLEL_SWEEP, sensor="davis346", extra="repeats = 2"))
+    serial = run_study(study, tmp_path / "serial", cache_dir=tmp_path / "c")
+    with make_executor(kind, workers=2) as executor:
+        parallel = run_study(study, tmp_path / "parallel", executor=executor)  # renders into parallel/render-cache
+    assert _rows(parallel) == _rows(serial)
+    assert _records(tmp_path / "parallel") == _records(tmp_path / "serial")
+    assert (tmp_path / "parallel" / "render-cache").is_dir()
