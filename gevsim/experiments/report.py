@@ -72,7 +72,9 @@ def ratio_text(row: dict) -> str:
         return iv.format()
     bound = row.get("flicker_rejection_ratio_at_least")
     if bound:
-        return f"at least {bound:.3g} (gradient rate not distinguishable from zero)"
+        ceiling = max(row["gradient_flicker_per_pixel_s_high"], 0.0)
+        return (f"at least {bound:.3g} (one-sided; the gradient flicker-induced rate is not distinguishable from "
+                f"zero, at most {ceiling:.3g} ev/px/s)")
     return "not determined (DVS/gradient intervals hold zero: Fieller's set is unbounded)"
 
 
@@ -164,9 +166,20 @@ def map_findings(rows: list[dict]) -> list[str]:
         area_d = np.median([r["dim_area_share"] for r in sel])
         out.append(f"{EMULATORS[e].label}: in the {len(sel)} runs where flicker adds events beyond their interval, "
                    f"{100 * border:.0f} % of them lie at borders between regions lit by different lamps "
-                   f"({100 * area_b:.0f} % of the pixels) and {100 * dim:.0f} % in the dimmest quarter of the "
-                   f"pixels (median over runs).")
+                   f"({100 * area_b:.0f} % of the pixels: {_concentration(border, area_b)}) and {100 * dim:.0f} % "
+                   f"in the dimmest quarter of the pixels ({_concentration(dim, area_d)}; medians over runs).")
     return out
+
+
+def _concentration(share: float, area: float) -> str:
+    if area <= 0:
+        return "no such pixels"
+    ratio = share / area
+    if ratio >= 1.5:
+        return f"{ratio:.2g}x their share of the image: concentrated there"
+    if ratio <= 1 / 1.5:
+        return f"{ratio:.2g}x their share of the image: fewer there than elsewhere"
+    return f"{ratio:.2g}x their share of the image: not concentrated there"
 
 
 def render_floor_findings(rows: list[dict]) -> list[str]:

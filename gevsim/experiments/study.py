@@ -1,17 +1,23 @@
-"""Studies: sweeps of emulation parameters, each run with its counterfactuals.
+"""Studies: sweeps of emulation parameters, each run repeated with R noise seeds and its counterfactuals.
 
 A study config names a base emulation and sweep axes; every combination is a
-run. Each run is emulated four times on the same scene and seed (DESIGN.md,
-Counterfactual runs): as is, with every lamp waveform replaced by its mean,
-with an ideal pixel as well, and the render-noise floor (ideal pixel, lamps at
-their mean, the render's noise redrawn at the lamp frequency:
-:func:`gevsim.emulation.driver.render_noise_floor`). Flicker-induced events
-are the events of the run minus those without flicker; noise-induced events
-those without flicker minus those of the ideal pixel; the render-noise floor
-the floor run's events minus the ideal run's. A flicker-induced rate near its
-floor is set by the renderer, not by the scene. Reconstructions of the run are scored against
-the flicker-free reference. Each run's result is written atomically as
-``runs/<id>.json``; a rerun skips finished runs, so interrupted studies resume.
+run. Each run is repeated with ``repeats`` noise seeds, and each repeat is
+emulated four times with its seed (DESIGN.md, Counterfactual runs; common random
+numbers): as is, with every lamp waveform replaced by its mean, with an ideal
+pixel as well, and the render-noise floor (ideal pixel, lamps at their mean, the
+render's noise redrawn at the lamp frequency:
+:func:`gevsim.emulation.driver.render_noise_floor`). Flicker-induced events are
+the events of the run minus those without flicker; noise-induced events those
+without flicker minus those of the ideal pixel; the render-noise floor the floor
+run's events minus the ideal run's. Their means over the repeats come with 95 %
+intervals, beside a phase-locked estimate that needs no subtraction
+(:mod:`gevsim.experiments.aggregate`). Reconstructions of the run are scored
+against the flicker-free reference.
+
+Each (run, repeat) is one job (:mod:`gevsim.experiments.repeat`), run here or by
+an executor (:mod:`gevsim.experiments.executors`); each writes
+``runs/<id>/r<k>.json`` last and atomically, so a rerun skips finished jobs and
+interrupted studies resume.
 
 ```toml
 [study]
@@ -23,7 +29,8 @@ flicker_group = "ceiling"      # the swept light group, or a table: { office = "
 duration_s = 0.02
 step_s = 2e-5
 frame_rate_hz = 500.0
-seed = 1
+seed = 1                       # repeat r uses noise seed seed + r
+repeats = 3                    # noise seeds per run (default 3); more later reuses the finished ones
 methods = ["dct", "direct"]    # reconstructions to score (gradient: dct/sor[_rc]; brightness: direct/...)
 [study.render]
 width = 64

@@ -327,7 +327,8 @@ def flicker_maps(folder: Path, study: Study, row: dict, maps: dict, index: int, 
     for ax in axes[n:]:
         ax.axis("off")
     axes = axes[:n]
-    im = axes[0].imshow(np.log10(np.maximum(maps["chip_lux"], 1e-6)), cmap="gray")
+    lux = np.log10(np.maximum(maps["chip_lux"], 1e-9))
+    im = axes[0].imshow(lux, cmap="gray", vmin=np.percentile(lux, 1), vmax=np.percentile(lux, 99.5))
     axes[0].set_title("chip illuminance, log10 lux", fontsize=8)
     fig.colorbar(im, ax=axes[0], fraction=0.046)
     names = row.get("group_names", [])
