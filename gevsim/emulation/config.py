@@ -46,7 +46,7 @@ from pathlib import Path
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.emulators import EMULATORS, check_emulator
 from gevsim.errors import ConfigError, check_keys
-from gevsim.render.manifest import check_render_overrides
+from gevsim.render.quality import check_render_overrides
 
 TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",

@@ -43,7 +43,7 @@ from gevsim import __version__
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
-from gevsim.render.manifest import check_render_overrides
+from gevsim.render.quality import check_render_overrides
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.io import EventReader, atomic_write_text, export_evreal
 from gevsim.reconstruct.tonemap import ToneMap
