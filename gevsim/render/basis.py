@@ -126,13 +126,17 @@ def batch_seed(seed: int, batch: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(batch)]).generate_state(1)[0])
 
 
-def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = None):
+def render_pose(
+    scene: MitsubaScene, request: dict, *, budget_s: float | None = None, one_pass: bool | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, NoiseReport]:
     """Render the current pose's K group images in batches until the request is met.
 
     Returns ``(images, noise, se_map, report)``: (K, H, W, C) mean and noise
     sample (:meth:`BatchAccumulator.noise`), the (H, W) error map
     (:meth:`BatchAccumulator.se_ln`) and a :class:`NoiseReport`. A fixed
     request renders ``spp`` in an even number of equal batches (rounded up).
+    ``one_pass=False`` renders each group on its own (the scene's choice by
+    default; see :meth:`MitsubaScene.render_groups`), for comparisons.
     """
     r = scene.manifest.render
     acc = BatchAccumulator(request["mixtures"], floor_rel=request["floor_rel"], metric=request["metric"])
@@ -141,7 +145,7 @@ def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = 
     start = time.perf_counter()
 
     def batch(spp: int) -> None:
-        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches))
+        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches), one_pass=one_pass)
         acc.add(images, luminance(images), scene.sample_count(spp))
 
     if target is None:
