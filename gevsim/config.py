@@ -8,7 +8,11 @@ import tomllib
 from dataclasses import fields
 from pathlib import Path
 
+from gevsim import _validate
+from gevsim._validate import FieldError  # defined with the checks that raise it; re-exported here
 from gevsim.errors import ConfigError, check_keys
+
+__all__ = ["FieldError", "FromTable", "TomlReader", "read_toml", "resource_tomls"]
 
 _REPO = Path(__file__).resolve().parents[1]
 _PACKAGE = Path(__file__).resolve().parent
@@ -25,14 +29,6 @@ def resource_tomls(kind: str) -> dict[str, Path]:
         if folder.is_dir():
             found.update({p.stem: p for p in sorted(folder.glob("*.toml"))})
     return found
-
-
-class FieldError(ValueError):
-    """A bad dataclass field value; ``field`` names it so config errors can name the key."""
-
-    def __init__(self, field: str, message: str):
-        self.field = field
-        super().__init__(message)
 
 
 class FromTable:
@@ -75,19 +71,20 @@ class TomlReader:
     def fail(self, key: str, message: str):
         raise ConfigError(message, source=self.source, key=key)
 
-    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, integer=False):
+    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, maximum=None,
+               integer=False):
         if key not in table:
             if default is None:
                 self.fail(f"{where}.{key}", "missing")
             return default
         value = table[key]
-        kind = int if integer else (int, float)
-        if isinstance(value, bool) or not isinstance(value, kind) or not math.isfinite(value):
-            self.fail(f"{where}.{key}", f"expected a finite {'integer' if integer else 'number'}, got {value!r}")
-        if positive and value <= 0:
-            self.fail(f"{where}.{key}", f"must be > 0, got {value!r}")
-        if minimum is not None and value < minimum:
-            self.fail(f"{where}.{key}", f"must be >= {minimum}, got {value!r}")
+        try:
+            if integer:
+                _validate.integer(value, key, low=1 if positive else minimum, high=maximum)
+            else:
+                _validate.real(value, key, low=0.0 if positive else minimum, low_open=positive, high=maximum)
+        except FieldError as err:
+            self.fail(f"{where}.{key}", str(err))
         return value
 
     def vector(self, table: dict, key: str, where: str, default=None, *, n=3, nonnegative=False):

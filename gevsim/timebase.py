@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gevsim._validate import real_array
+
 
 def check_chunk(values, t_s, *, shape, name: str, after: float | None):
     """Validate a chunk of samples ``values`` (T, H, W) at strictly increasing times
@@ -20,8 +22,7 @@ def check_chunk(values, t_s, *, shape, name: str, after: float | None):
         raise ValueError(f"t_s has {len(t)} times but {name} has {v.shape[0]} samples")
     if v.dtype.kind != "f":
         v = v.astype(np.float64)
-    if not np.all(np.isfinite(t)):
-        raise ValueError("t_s must be finite")
+    real_array(t, "t_s")
     prev = np.concatenate([[-np.inf if after is None else after], t[:-1]]) if len(t) else t
     if np.any(t <= prev):
         k = int(np.argmax(t <= prev))

@@ -39,10 +39,10 @@ waveform = { type = "pwm", frequency_hz = 300.0, duty = 0.5 }
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.emulators import EMULATORS, check_emulator
 from gevsim.errors import ConfigError, check_keys
@@ -130,10 +130,10 @@ def load_config(path: str | Path) -> EmulationConfig:
     grad = r.table(raw, "gradient")
     check_keys(grad, ("thresholds_ln", "hysteresis_ln"), source=src, where="gradient")
     thresholds = grad.get("thresholds_ln", [0.05, 0.1, 0.2])
-    if (not isinstance(thresholds, list) or not thresholds
-            or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 and math.isfinite(t)
-                       for t in thresholds)):
-        r.fail("gradient.thresholds_ln", f"expected a list of positive numbers, got {thresholds!r}")
+    try:
+        real_list(thresholds, "thresholds_ln", positive=True)
+    except FieldError as err:
+        r.fail("gradient.thresholds_ln", str(err))
     cs = r.table(raw, "csdvs")
     check_keys(cs, ("surround_length_px", "surround_tau_s"), source=src, where="csdvs")
     light = r.table(raw, "light")

@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.constants import elementary_charge
 
+from gevsim._validate import real
 from gevsim.emulation import layout
 from gevsim.emulation.config import EmulationConfig, check_consistency
 from gevsim.emulation.emulators import APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, SEED_SLOTS, make_emulator
@@ -120,9 +121,7 @@ def render_noise_floor(setup: Setup, *, frequency_hz: float) -> Setup:
     """
     if setup.current_noise is None:
         raise ValueError("render_noise_floor: this setup carries no render-noise sample")
-    if not frequency_hz > 0:
-        raise ValueError(f"render_noise_floor: frequency_hz must be > 0, got {frequency_hz!r}")
-    period = 1.0 / frequency_hz
+    period = 1.0 / real(frequency_hz, "frequency_hz", low=0.0, low_open=True)
     a = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5})
     b = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5, "phase_s": 0.5 * period})
     k = setup.current_basis.shape[1]

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gevsim._validate import real_list
 from gevsim.events import _kernels
 from gevsim.events._kernels import EVENT_TABLE
 from gevsim.events._runner import SampledSignal, run_with_buffers
@@ -34,9 +35,7 @@ LN_THRESHOLDS = (0.05, 0.1, 0.2)
 
 def threshold_matrix(shape, thresholds: Sequence[float] = PAPER_THRESHOLDS) -> np.ndarray:
     """Theta(x, y) = thresholds[(x + y) mod n], shape (H, W)."""
-    t = np.asarray(thresholds, dtype=np.float64)
-    if t.ndim != 1 or len(t) == 0 or not np.all(np.isfinite(t)) or np.any(t <= 0):
-        raise ValueError(f"thresholds must be a non-empty list of positive numbers, got {list(thresholds)!r}")
+    t = np.asarray(real_list(thresholds, "thresholds", positive=True), dtype=np.float64)
     h, w = shape
     y, x = np.mgrid[0:h, 0:w]
     return t[(x + y) % len(t)]

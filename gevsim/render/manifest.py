@@ -11,7 +11,6 @@ its tables key by key.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -318,15 +317,14 @@ def override(manifest: SceneManifest, *, source: str | None = None, **changes) -
     changes = {k: v for k, v in changes.items() if v is not None}
     raw = copy.deepcopy(manifest.raw)
     duration = changes.pop("duration_s", manifest.duration_s)
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not duration > 0 \
-            or not math.isfinite(duration):
-        raise ConfigError(f"duration must be > 0, got {duration!r}", source=source, key="duration_s")
+    r = TomlReader(source or "overrides")
+    r.number({"duration_s": duration}, "duration_s", "sequence", positive=True)
     for key, value in changes.items():
         if key not in RENDER_KEYS:
             raise ConfigError(f"cannot override {key!r}{suggest(key, RENDER_KEYS)}", source=source, key=key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and key != "seed" and value <= 0:
-            raise ConfigError(f"must be > 0, got {value!r}", source=source, key=f"render.{key}")
-    changes.update(quality_settings(changes, TomlReader(source or "overrides"), "render"))
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and key != "seed":
+            r.number(changes, key, "render", positive=True)
+    changes.update(quality_settings(changes, r, "render"))
     render = raw.setdefault("render", {})
     if "spp" in changes:  # a fixed sample count: the draft mode
         changes["noise_target_ln"] = None
