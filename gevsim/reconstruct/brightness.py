@@ -42,6 +42,8 @@ from gevsim.events.types import BRIGHTNESS_DTYPE
 
 HIGH_PASS_CUTOFF_RAD_S = 2.0 * math.pi * 0.1  # assumed: authors' code default, 0.1 Hz
 COMPLEMENTARY_CUTOFF_RAD_S = 2.0 * math.pi * 0.5  # assumed: authors' code default, 0.5 Hz
+#: Default ON and OFF contrast step of an event (ln units): the usual DVS threshold (assumed).
+CONTRAST_LN = 0.2
 
 _INF = np.iinfo(np.int64).max
 
@@ -90,15 +92,8 @@ def _check_times(t, name):
 
 
 def _contrasts(c_on, c_off):
-    return real(c_on, "contrast_on", low=0.0, low_open=True), real(c_off, "contrast_off", low=0.0, low_open=True)
-
-
-def _split_contrast(contrast):
-    if np.ndim(contrast) == 0:
-        return _contrasts(contrast, contrast)
-    if np.shape(contrast) != (2,):
-        raise ValueError(f"contrast must be a scalar or an (on, off) pair, got {contrast!r}")
-    return _contrasts(*contrast)
+    return (real(c_on, "contrast_on_ln", low=0.0, low_open=True),
+            real(c_off, "contrast_off_ln", low=0.0, low_open=True))
 
 
 def _unpack(events, width, height, c_on, c_off):
@@ -132,26 +127,29 @@ def _run(events, frame_t_us, frames, frames_t, width, height, c_on, c_off, alpha
     return _filter(x, y, t, c, frames, frames_t, out_t, state, last, alpha)
 
 
-def direct_integration(events, frame_t_us, *, width, height, contrast_on=0.2, contrast_off=0.2, initial=None):
+def direct_integration(events, frame_t_us, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN,
+                       initial=None):
     """Per-pixel sum of contrast steps up to each of ``frame_t_us``: (M, H, W) float64 log frames.
 
+    An ON event adds ``contrast_on_ln``, an OFF event subtracts ``contrast_off_ln`` (ln units).
     ``initial`` (H, W) is the log image before the first event (default zeros).
     """
-    c_on, c_off = _contrasts(contrast_on, contrast_off)
+    c_on, c_off = _contrasts(contrast_on_ln, contrast_off_ln)
     empty_t = np.zeros(0, dtype=np.int64)
     return _run(events, frame_t_us, None, empty_t, width, height, c_on, c_off, 0.0, initial)
 
 
 def high_pass_filter(
-    events, frame_t_us, *, width, height, contrast=0.2, cutoff_rad_s=HIGH_PASS_CUTOFF_RAD_S, initial=None
+    events, frame_t_us, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN,
+    cutoff_rad_s=HIGH_PASS_CUTOFF_RAD_S, initial=None
 ):
     """Events-only high-pass filter of Scheerlinck et al. (ACCV 2018): (M, H, W) float64 log frames.
 
     Each pixel decays as exp(-cutoff_rad_s dt) between its events and jumps by
-    the event contrast (``contrast``: a scalar or an (on, off) pair, ln units).
+    the event contrast (``contrast_on_ln`` / ``-contrast_off_ln``, ln units).
     ``initial`` (default zeros) is the state at the earliest event or output time.
     """
-    c_on, c_off = _split_contrast(contrast)
+    c_on, c_off = _contrasts(contrast_on_ln, contrast_off_ln)
     alpha = real(cutoff_rad_s, "cutoff_rad_s", low=0.0)
     empty_t = np.zeros(0, dtype=np.int64)
     return _run(events, frame_t_us, None, empty_t, width, height, c_on, c_off, alpha, initial)
@@ -165,7 +163,8 @@ def complementary_filter(
     *,
     width,
     height,
-    contrast=0.2,
+    contrast_on_ln=CONTRAST_LN,
+    contrast_off_ln=CONTRAST_LN,
     cutoff_rad_s=COMPLEMENTARY_CUTOFF_RAD_S,
     initial=None,
 ):
@@ -173,10 +172,11 @@ def complementary_filter(
 
     dL/dt = events - cutoff_rad_s (L - L_F), with L_F = ``frames_log[k]`` from
     ``frames_t_us[k]`` until the next frame (``frames_log[0]`` before the first
-    one). ``initial`` is the state at the earliest timestamp given (default
+    one). Events step by ``contrast_on_ln`` / ``-contrast_off_ln`` (ln units).
+    ``initial`` is the state at the earliest timestamp given (default
     ``frames_log[0]``). Returns (M, H, W) float64 log frames at ``frame_t_us_out``.
     """
-    c_on, c_off = _split_contrast(contrast)
+    c_on, c_off = _contrasts(contrast_on_ln, contrast_off_ln)
     alpha = real(cutoff_rad_s, "cutoff_rad_s", low=0.0)
     width, height = size(width, height)
     frames = np.asarray(frames_log, dtype=np.float64)
