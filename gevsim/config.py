@@ -3,10 +3,12 @@ resources (``scenes/``, ``noise/``). Every error names the file and the key."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 from dataclasses import fields
 from pathlib import Path
+from typing import Self
 
 from gevsim import _validate
 from gevsim._validate import FieldError  # defined with the checks that raise it; re-exported here
@@ -41,15 +43,27 @@ class FromTable:
     TABLE = ""
 
     @classmethod
-    def from_table(cls, table: dict, *, source: str | None = None, where: str | None = None):
+    def from_table(cls, table: dict, *, source: str | None = None, where: str | None = None,
+                   base: Self | None = None) -> Self:
+        """An instance from ``table``; missing keys take the dataclass defaults, or those of ``base``."""
         where = cls.TABLE if where is None else where
         if not isinstance(table, dict):
             raise ConfigError(f"expected a table, got {table!r}", source=source, key=where)
         check_keys(table, [f.name for f in fields(cls)], source=source, where=where)
         try:
-            return cls(**table)
+            return cls(**table) if base is None else dataclasses.replace(base, **table)
         except FieldError as err:
             raise ConfigError(str(err), source=source, key=f"{where}.{err.field}" if where else err.field) from None
+
+    @classmethod
+    def from_section(cls, table: dict, *, source: str | None = None, where: str | None = None,
+                     base: Self | None = None) -> Self:
+        """Like :meth:`from_table` for the keys of ``table`` that are fields (a table shared with other
+        settings, such as the time grid in ``[emulation]``); the other keys are left to the caller."""
+        if not isinstance(table, dict):
+            raise ConfigError(f"expected a table, got {table!r}", source=source, key=where or cls.TABLE)
+        names = {f.name for f in fields(cls)}
+        return cls.from_table({k: v for k, v in table.items() if k in names}, source=source, where=where, base=base)
 
 
 def read_toml(path: Path, *, what: str) -> dict:

@@ -161,10 +161,9 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     aps = ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED])) if config.aps else None
     aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
 
-    n_steps = int(round(setup.duration_s / config.step_s))
+    n_steps = config.time.steps(setup.duration_s)
     t_end_all = config.step_s * np.arange(1, n_steps + 1)
-    frame_t = (np.arange(0.0, setup.duration_s + 1e-12, 1.0 / config.frame_rate_hz)
-               if config.frame_rate_hz > 0 else np.zeros(0))
+    frame_t = config.time.frame_times_s(setup.duration_s)
     counts = {EMULATORS[n].stream: 0 for n in emulators}
     dark = float(preset.noise.dark_current_a)
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,
