@@ -49,8 +49,8 @@ def main():
 
         v0 = pr.process(*window())  # compile, then keep going in time
         dvs = BrightnessEmulator((h, w), preset.events, rng=rng)
-        grad = GradientEmulator((h, w), mismatch_sigma=preset.events.threshold_mismatch_ln, rng=rng)
-        grad_rc = GradientEmulator((h, w), rc=True, mismatch_sigma=preset.events.threshold_mismatch_ln, rng=rng)
+        grad = GradientEmulator((h, w), mismatch_sigma_ln=preset.events.threshold_mismatch_ln, rng=rng)
+        grad_rc = GradientEmulator((h, w), rc=True, mismatch_sigma_ln=preset.events.threshold_mismatch_ln, rng=rng)
         tt = dt * np.arange(2, 2 + steps)
         for em in (dvs, grad, grad_rc):
             em.process(v0, tt)

@@ -50,7 +50,7 @@ def main():
     for size in args.sizes.split(","):
         w, h = (int(n) for n in size.split("x"))
         img = resize(data.camera() / 255.0, (h, w))
-        em = GradientEmulator((h, w), thresholds=PAPER_THRESHOLDS)
+        em = GradientEmulator((h, w), thresholds_ln=PAPER_THRESHOLDS)
         lhat = approximate_laplacian(*quantized_gradients(em.ternary_of(img), em.theta))
         lhat32 = lhat.astype(np.float32)
         b = PAPER_C * lhat

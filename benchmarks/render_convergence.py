@@ -2,7 +2,7 @@
 
 For each built-in scene (first pose), side by side in one run:
 
-1. both paths render the same batches (``--spp`` samples in 8 batches, same seeds):
+1. both paths render the same batches (``--spp`` samples in the fixed mode's batches, same seeds):
    seconds, samples per second, and the achieved p99 ln error (flicker metric),
    so "equal noise" is measured, not assumed;
 2. the one-pass path renders to the scene's default noise target (``noise_target_ln =
@@ -17,23 +17,18 @@ from __future__ import annotations
 
 import argparse
 import platform
-import time
 
-from gevsim.optics import luminance
 from gevsim.render import MitsubaScene, builtin_scenes, load, override
-from gevsim.render.basis import batch_seed, quality_request, render_pose, resolve_target
-from gevsim.render.convergence import BatchAccumulator, mixture_weights
+from gevsim.render.basis import quality_request, render_pose
+from gevsim.render.convergence import mixture_weights
+from gevsim.render.quality import resolve_target
 
 
 def fixed(scene: MitsubaScene, mixtures, *, spp: int, one_pass: bool):
-    """Render ``spp`` in 8 equal batches; (seconds, p99 ln error)."""
-    acc = BatchAccumulator(mixtures, floor_rel=scene.manifest.render.noise_floor_rel)
-    size = max(1, spp // 8)
-    start = time.perf_counter()
-    for b in range(8):
-        images = scene.render_groups(spp=size, seed=batch_seed(1, b), one_pass=one_pass)
-        acc.add(images, luminance(images), size)
-    return time.perf_counter() - start, acc.percentiles(99.0)["p99"]
+    """Render ``spp`` samples in the fixed mode's batches; (seconds, p99 ln error)."""
+    request = quality_request(override(scene.manifest, spp=spp).render, mixtures, None)
+    _, _, _, report = render_pose(scene, request, one_pass=one_pass)
+    return report.seconds, report.se_ln_percentiles["p99"]
 
 
 def main() -> None:

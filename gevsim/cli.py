@@ -176,7 +176,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
     results, gt, tone = [], None, None
     for method in methods:
-        rec, gt, tone = reconstruct_file(args.file, method, mean=args.mean, c=args.c, contrast=args.contrast,
+        rec, gt, tone = reconstruct_file(args.file, method, mean=args.mean, c=args.c, contrast_ln=args.contrast,
                                          reference=args.reference)
         results.append(rec)
     settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast,

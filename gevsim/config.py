@@ -3,12 +3,18 @@ resources (``scenes/``, ``noise/``). Every error names the file and the key."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 from dataclasses import fields
 from pathlib import Path
+from typing import Self
 
+from gevsim import _validate
+from gevsim._validate import FieldError  # defined with the checks that raise it; re-exported here
 from gevsim.errors import ConfigError, check_keys
+
+__all__ = ["FieldError", "FromTable", "TomlReader", "read_toml", "resource_tomls"]
 
 _REPO = Path(__file__).resolve().parents[1]
 _PACKAGE = Path(__file__).resolve().parent
@@ -27,14 +33,6 @@ def resource_tomls(kind: str) -> dict[str, Path]:
     return found
 
 
-class FieldError(ValueError):
-    """A bad dataclass field value; ``field`` names it so config errors can name the key."""
-
-    def __init__(self, field: str, message: str):
-        self.field = field
-        super().__init__(message)
-
-
 class FromTable:
     """Mixin for parameter dataclasses: build one from a TOML table ``[TABLE]``.
 
@@ -45,15 +43,27 @@ class FromTable:
     TABLE = ""
 
     @classmethod
-    def from_table(cls, table: dict, *, source: str | None = None, where: str | None = None):
+    def from_table(cls, table: dict, *, source: str | None = None, where: str | None = None,
+                   base: Self | None = None) -> Self:
+        """An instance from ``table``; missing keys take the dataclass defaults, or those of ``base``."""
         where = cls.TABLE if where is None else where
         if not isinstance(table, dict):
             raise ConfigError(f"expected a table, got {table!r}", source=source, key=where)
         check_keys(table, [f.name for f in fields(cls)], source=source, where=where)
         try:
-            return cls(**table)
+            return cls(**table) if base is None else dataclasses.replace(base, **table)
         except FieldError as err:
             raise ConfigError(str(err), source=source, key=f"{where}.{err.field}" if where else err.field) from None
+
+    @classmethod
+    def from_section(cls, table: dict, *, source: str | None = None, where: str | None = None,
+                     base: Self | None = None) -> Self:
+        """Like :meth:`from_table` for the keys of ``table`` that are fields (a table shared with other
+        settings, such as the time grid in ``[emulation]``); the other keys are left to the caller."""
+        if not isinstance(table, dict):
+            raise ConfigError(f"expected a table, got {table!r}", source=source, key=where or cls.TABLE)
+        names = {f.name for f in fields(cls)}
+        return cls.from_table({k: v for k, v in table.items() if k in names}, source=source, where=where, base=base)
 
 
 def read_toml(path: Path, *, what: str) -> dict:
@@ -75,19 +85,20 @@ class TomlReader:
     def fail(self, key: str, message: str):
         raise ConfigError(message, source=self.source, key=key)
 
-    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, integer=False):
+    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, maximum=None,
+               integer=False):
         if key not in table:
             if default is None:
                 self.fail(f"{where}.{key}", "missing")
             return default
         value = table[key]
-        kind = int if integer else (int, float)
-        if isinstance(value, bool) or not isinstance(value, kind) or not math.isfinite(value):
-            self.fail(f"{where}.{key}", f"expected a finite {'integer' if integer else 'number'}, got {value!r}")
-        if positive and value <= 0:
-            self.fail(f"{where}.{key}", f"must be > 0, got {value!r}")
-        if minimum is not None and value < minimum:
-            self.fail(f"{where}.{key}", f"must be >= {minimum}, got {value!r}")
+        try:
+            if integer:
+                _validate.integer(value, key, low=1 if positive else minimum, high=maximum)
+            else:
+                _validate.real(value, key, low=0.0 if positive else minimum, low_open=positive, high=maximum)
+        except FieldError as err:
+            self.fail(f"{where}.{key}", str(err))
         return value
 
     def vector(self, table: dict, key: str, where: str, default=None, *, n=3, nonnegative=False):

@@ -1,8 +1,61 @@
-"""Checks shared by every stage that consumes a chunk of samples over time."""
+"""Time: the grid an emulation steps on (:class:`TimeGrid`), and the checks shared by every
+stage that consumes a chunk of samples over time (:func:`check_chunk`)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from gevsim._validate import FieldError, integer, real, real_array
+from gevsim.config import FromTable
+
+
+@dataclass(frozen=True)
+class TimeGrid(FromTable):
+    """The time grid of an emulation, the one place its defaults are defined.
+
+    Emulation, dataset and study configs read these keys from their main table
+    (:meth:`~gevsim.config.FromTable.from_section`).
+
+    Parameters
+    ----------
+    duration_s : how long to emulate; None: the scene's ``[sequence] duration_s``.
+    step_s : the pixel model's time step (a whole number of them must fill the duration).
+    chunk_steps : steps processed per chunk (bounds memory, not results).
+    frame_rate_hz : ground-truth frames per second (0: none).
+    """
+
+    duration_s: float | None = None
+    step_s: float = 1e-5
+    chunk_steps: int = 256
+    frame_rate_hz: float = 1000.0
+
+    def __post_init__(self) -> None:
+        if self.duration_s is not None:
+            object.__setattr__(self, "duration_s", real(self.duration_s, "duration_s", low=0.0, low_open=True))
+        object.__setattr__(self, "step_s", real(self.step_s, "step_s", low=0.0, low_open=True))
+        object.__setattr__(self, "chunk_steps", integer(self.chunk_steps, "chunk_steps", low=1))
+        object.__setattr__(self, "frame_rate_hz", real(self.frame_rate_hz, "frame_rate_hz", low=0.0))
+        if self.duration_s is not None and self.step_s >= self.duration_s:
+            raise FieldError("step_s", f"step_s = {self.step_s} must be shorter than duration_s = {self.duration_s}")
+
+    def steps(self, duration_s: float) -> int:
+        """The number of steps in ``duration_s`` (the grid's own duration, or the scene's when it has none);
+        FieldError when it is not a whole number of steps longer than one."""
+        if self.step_s >= duration_s:
+            raise FieldError("step_s", f"step_s = {self.step_s} must be shorter than the duration {duration_s} s")
+        steps = duration_s / self.step_s
+        if abs(steps - round(steps)) > 1e-6 * steps:
+            raise FieldError("step_s", f"the duration {duration_s} s is not a whole number of steps of "
+                                       f"{self.step_s} s")
+        return int(round(steps))
+
+    def frame_times_s(self, duration_s: float) -> np.ndarray:
+        """Ground-truth frame times in [0, ``duration_s``] (none when ``frame_rate_hz`` is 0)."""
+        if self.frame_rate_hz <= 0:
+            return np.zeros(0)
+        return np.arange(0.0, duration_s + 1e-12, 1.0 / self.frame_rate_hz)
 
 
 def check_chunk(values, t_s, *, shape, name: str, after: float | None):
@@ -20,8 +73,7 @@ def check_chunk(values, t_s, *, shape, name: str, after: float | None):
         raise ValueError(f"t_s has {len(t)} times but {name} has {v.shape[0]} samples")
     if v.dtype.kind != "f":
         v = v.astype(np.float64)
-    if not np.all(np.isfinite(t)):
-        raise ValueError("t_s must be finite")
+    real_array(t, "t_s")
     prev = np.concatenate([[-np.inf if after is None else after], t[:-1]]) if len(t) else t
     if np.any(t <= prev):
         k = int(np.argmax(t <= prev))

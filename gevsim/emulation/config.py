@@ -39,14 +39,15 @@ waveform = { type = "pwm", frequency_hz = 300.0, duty = 0.5 }
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
+from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.emulators import EMULATORS, check_emulator
 from gevsim.errors import ConfigError, check_keys
-from gevsim.render.manifest import check_render_overrides
+from gevsim.render.quality import check_render_overrides
+from gevsim.timebase import TimeGrid
 
 TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
@@ -59,10 +60,11 @@ class EmulationConfig:
     sensor: str = "davis346"
     emulators: tuple[str, ...] = tuple(EMULATORS)
     seed: int = 0
-    duration_s: float | None = None
-    step_s: float = 1e-5
-    chunk_steps: int = 256
-    frame_rate_hz: float = 1000.0
+    # The time grid, flat for the keyword API; defaults and checks are TimeGrid's (see ``time``).
+    duration_s: float | None = TimeGrid.duration_s
+    step_s: float = TimeGrid.step_s
+    chunk_steps: int = TimeGrid.chunk_steps
+    frame_rate_hz: float = TimeGrid.frame_rate_hz
     aps: bool = False
     aps_exposure_s: float = 5e-4
     render: dict = field(default_factory=dict)
@@ -76,6 +78,11 @@ class EmulationConfig:
     group_waveform: dict = field(default_factory=dict)  # light group -> waveform spec table
     source: str = ""
     text: str = ""
+
+    @property
+    def time(self) -> TimeGrid:
+        """The time grid (validated: a bad value raises :class:`~gevsim._validate.FieldError`)."""
+        return TimeGrid(**{f.name: getattr(self, f.name) for f in fields(TimeGrid)})
 
     def to_toml(self) -> str:
         """The config as TOML (what an emulation file records; programmatic configs too)."""
@@ -130,10 +137,10 @@ def load_config(path: str | Path) -> EmulationConfig:
     grad = r.table(raw, "gradient")
     check_keys(grad, ("thresholds_ln", "hysteresis_ln"), source=src, where="gradient")
     thresholds = grad.get("thresholds_ln", [0.05, 0.1, 0.2])
-    if (not isinstance(thresholds, list) or not thresholds
-            or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 and math.isfinite(t)
-                       for t in thresholds)):
-        r.fail("gradient.thresholds_ln", f"expected a list of positive numbers, got {thresholds!r}")
+    try:
+        real_list(thresholds, "thresholds_ln", positive=True)
+    except FieldError as err:
+        r.fail("gradient.thresholds_ln", str(err))
     cs = r.table(raw, "csdvs")
     check_keys(cs, ("surround_length_px", "surround_tau_s"), source=src, where="csdvs")
     light = r.table(raw, "light")
@@ -155,16 +162,13 @@ def load_config(path: str | Path) -> EmulationConfig:
     aps = em.get("aps", False)
     if not isinstance(aps, bool):
         r.fail("emulation.aps", f"expected true or false, got {aps!r}")
-    duration = em.get("duration_s")
+    grid = TimeGrid.from_section(em, source=src, where="emulation")
     return EmulationConfig(
         scene=scene,
         sensor=sensor,
         emulators=tuple(emulators),
         seed=r.number(em, "seed", "emulation", 0, minimum=0, integer=True),
-        duration_s=None if duration is None else float(r.number(em, "duration_s", "emulation", positive=True)),
-        step_s=float(r.number(em, "step_s", "emulation", 1e-5, positive=True)),
-        chunk_steps=r.number(em, "chunk_steps", "emulation", 256, positive=True, integer=True),
-        frame_rate_hz=float(r.number(em, "frame_rate_hz", "emulation", 1000.0, minimum=0.0)),
+        **asdict(grid),
         aps=aps,
         aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
         render=dict(render),
@@ -183,13 +187,10 @@ def load_config(path: str | Path) -> EmulationConfig:
 
 def check_consistency(config: EmulationConfig, *, duration_s: float) -> None:
     """Cross-field checks once the scene's duration is known."""
-    if config.step_s >= duration_s:
-        raise ConfigError(f"step_s = {config.step_s} must be shorter than the duration {duration_s} s",
-                          source=config.source, key="emulation.step_s")
-    steps = duration_s / config.step_s
-    if abs(steps - round(steps)) > 1e-6 * steps:
-        raise ConfigError(f"the duration {duration_s} s is not a whole number of steps of {config.step_s} s",
-                          source=config.source, key="emulation.step_s")
+    try:
+        config.time.steps(duration_s)
+    except FieldError as err:
+        raise ConfigError(str(err), source=config.source, key=f"emulation.{err.field}") from None
     if config.hysteresis_ln >= min(config.thresholds_ln):
         raise ConfigError(f"hysteresis_ln = {config.hysteresis_ln} must be below the smallest threshold "
                           f"{min(config.thresholds_ln)}", source=config.source, key="gradient.hysteresis_ln")

@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.constants import elementary_charge
 
+from gevsim._validate import real
 from gevsim.emulation import layout
 from gevsim.emulation.config import EmulationConfig, check_consistency
 from gevsim.emulation.emulators import APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, SEED_SLOTS, make_emulator
@@ -124,9 +125,7 @@ def render_noise_floor(setup: Setup, *, frequency_hz: float) -> Setup:
     """
     if setup.current_noise is None:
         raise ValueError("render_noise_floor: this setup carries no render-noise sample")
-    if not frequency_hz > 0:
-        raise ValueError(f"render_noise_floor: frequency_hz must be > 0, got {frequency_hz!r}")
-    period = 1.0 / frequency_hz
+    period = 1.0 / real(frequency_hz, "frequency_hz", low=0.0, low_open=True)
     a = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5})
     b = from_spec({"type": "pwm", "frequency_hz": frequency_hz, "duty": 0.5, "phase_s": 0.5 * period})
     k = setup.current_basis.shape[1]
@@ -166,10 +165,9 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     aps = ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED])) if config.aps else None
     aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
 
-    n_steps = int(round(setup.duration_s / config.step_s))
+    n_steps = config.time.steps(setup.duration_s)
     t_end_all = config.step_s * np.arange(1, n_steps + 1)
-    frame_t = (np.arange(0.0, setup.duration_s + 1e-12, 1.0 / config.frame_rate_hz)
-               if config.frame_rate_hz > 0 else np.zeros(0))
+    frame_t = config.time.frame_times_s(setup.duration_s)
     counts = {EMULATORS[n].stream: 0 for n in emulators}
     dark = float(preset.noise.dark_current_a)
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,

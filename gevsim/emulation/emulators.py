@@ -82,9 +82,9 @@ def _theta(emulator, preset) -> np.ndarray:
 
 def _gradient(rc: bool):
     def build(shape, *, config, preset, rng):
-        return GradientEmulator(shape, thresholds=config.thresholds_ln, rc=rc,
-                                mismatch_sigma=preset.events.threshold_mismatch_ln,
-                                hysteresis=config.hysteresis_ln, rng=rng)
+        return GradientEmulator(shape, thresholds_ln=config.thresholds_ln, rc=rc,
+                                mismatch_sigma_ln=preset.events.threshold_mismatch_ln,
+                                hysteresis_ln=config.hysteresis_ln, rng=rng)
     return build
 
 
@@ -101,7 +101,7 @@ def _dvs_frames(shape, *, thresholds: Sequence[float], dvs_params: EventParams, 
 
 def _gradient_frames(rc: bool):
     def build(shape, *, thresholds: Sequence[float], dvs_params: EventParams, rng: np.random.Generator):
-        return GradientEmulator(shape, thresholds=thresholds, rc=rc, interpolate=False)
+        return GradientEmulator(shape, thresholds_ln=thresholds, rc=rc, interpolate=False)  # frame units
     return build
 
 

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gevsim._validate import increasing, real, real_array
 from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS, FRAME_EMULATORS, check_emulator
 from gevsim.errors import ConfigError
@@ -31,20 +32,11 @@ def _check_frames(frames, t_s) -> tuple[np.ndarray, np.ndarray]:
         raise TypeError(f"frames must be floating point in [0, 1], got {f.dtype} (divide 8-bit frames by 255)")
     if f.ndim != 3 or f.shape[0] < 2:
         raise ValueError(f"frames must have shape (N, H, W) with N >= 2, got {f.shape}")
-    bad = int((~np.isfinite(f)).sum())
-    if bad:
-        raise ValueError(f"frames must be finite: {bad} values are NaN or infinite")
-    if f.min() < 0:
-        raise ValueError(f"frames must be >= 0: {int((f < 0).sum())} values are negative")
+    real_array(f, "frames", nonnegative=True)
     t = np.asarray(t_s, dtype=np.float64)
     if t.shape != (f.shape[0],):
         raise ValueError(f"t_s must have shape ({f.shape[0]},) to match the frames, got {t.shape}")
-    if not np.all(np.isfinite(t)):
-        raise ValueError("t_s must be finite")
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if len(bad):
-        k = int(bad[0]) + 1
-        raise ValueError(f"t_s must increase strictly: frame {k} at {t[k]!r} s follows {t[k - 1]!r} s")
+    increasing(t, "t_s", what="frame")
     return f.astype(np.float64, copy=False), t
 
 
@@ -87,8 +79,7 @@ def emulate_frames(frames: np.ndarray, t_s: np.ndarray, *, emulators: Sequence[s
     f, t = _check_frames(frames, t_s)
     shape = f.shape[1:]
     _check_sizes(shape, entries)
-    if not np.isfinite(log_eps) or log_eps <= 0:
-        raise ValueError(f"log_eps must be a positive number, got {log_eps!r}")
+    real(log_eps, "log_eps", low=0.0, low_open=True)
     out = {}
     for entry in entries.values():
         emu = entry.build_frames(shape, thresholds=thresholds, dvs_params=dvs_params, rng=rng)

@@ -29,10 +29,6 @@ from gevsim.reconstruct.gradient import GradientReconstructor
 
 __all__ = ["METHODS", "Method", "check_method"]
 
-#: Contrast step (ln) of a brightness event when the file stores no DVS thresholds (frame mode).
-DEFAULT_CONTRAST_LN = 0.2
-
-
 @dataclass(frozen=True)
 class Method:
     """One registry entry.
@@ -40,7 +36,7 @@ class Method:
     Attributes
     ----------
     emulator : the emulator (:data:`~gevsim.emulation.emulators.EMULATORS`) whose stream it reads.
-    run : ``run(reader, gt, t_us, *, c, contrast, is_log)``: frames (M, H, W) at ``t_us``, in the
+    run : ``run(reader, gt, t_us, *, c, contrast_ln, is_log)``: frames (M, H, W) at ``t_us``, in the
         units of the ground truth ``gt`` (ln for scene mode, intensity for frame mode).
     needs_aps : it fuses APS frames (the run must emulate them).
     """
@@ -64,7 +60,7 @@ def _stream(r: EventReader, emulator: str) -> str:
 
 def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:
     """Decode ``emulator``'s gradient events up to each frame and solve with ``solver``."""
-    def run(r: EventReader, gt, t_us, *, c, contrast, is_log) -> np.ndarray:
+    def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
         stream = _stream(r, emulator)
         theta = r.array(layout.thresholds_key(emulator)).astype(np.float64)
         state = r.array(layout.initial_state_key(emulator)).astype(np.int8)
@@ -81,21 +77,21 @@ def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarra
     return run
 
 
-def _contrast(r: EventReader, contrast: float | None) -> tuple[float, float]:
+def _contrast(r: EventReader, contrast_ln: float | None) -> tuple[float, float]:
     """ON/OFF contrast steps: given, else the DVS thresholds stored in the file, else the default."""
-    if contrast is not None:
-        return float(contrast), float(contrast)
+    if contrast_ln is not None:
+        return float(contrast_ln), float(contrast_ln)
     try:
         on, off = (float(v) for v in r.array(layout.thresholds_key("dvs")))
     except (KeyError, ConfigError):
-        on = off = DEFAULT_CONTRAST_LN
+        on = off = brightness.CONTRAST_LN  # frame mode stores no DVS thresholds
     return on, off
 
 
 def _brightness(integrate: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
     """Integrate the DVS events up to the last frame with ``integrate(r, events, t_us, (h, w), on, off)``."""
-    def run(r: EventReader, gt, t_us, *, c, contrast, is_log) -> np.ndarray:
-        on, off = _contrast(r, contrast)
+    def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
+        on, off = _contrast(r, contrast_ln)
         events = r.read(_stream(r, "dvs"), None, int(t_us[-1]) + 1)
         frames = integrate(r, events, t_us, gt.shape[1:], on, off)
         if not is_log:  # frame mode compares intensities
@@ -106,12 +102,12 @@ def _brightness(integrate: Callable[..., np.ndarray]) -> Callable[..., np.ndarra
 
 def _direct(r, events, t_us, shape, on, off):  # events only: starts from a flat image, like the filters
     h, w = shape
-    return brightness.direct_integration(events, t_us, width=w, height=h, contrast_on=on, contrast_off=off)
+    return brightness.direct_integration(events, t_us, width=w, height=h, contrast_on_ln=on, contrast_off_ln=off)
 
 
 def _high_pass(r, events, t_us, shape, on, off):
     h, w = shape
-    return brightness.high_pass_filter(events, t_us, width=w, height=h, contrast=(on, off))
+    return brightness.high_pass_filter(events, t_us, width=w, height=h, contrast_on_ln=on, contrast_off_ln=off)
 
 
 def _complementary(r, events, t_us, shape, on, off):
@@ -121,7 +117,8 @@ def _complementary(r, events, t_us, shape, on, off):
     aps, aps_t = r.frames(layout.APS)
     offset = float(r.array_attrs(f"/frames/{layout.APS}").get("offset_dn", 0.0))
     aps_log = np.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
-    return brightness.complementary_filter(events, aps_log, aps_t, t_us, width=w, height=h, contrast=(on, off))
+    return brightness.complementary_filter(events, aps_log, aps_t, t_us, width=w, height=h, contrast_on_ln=on,
+                                           contrast_off_ln=off)
 
 
 #: Reconstruction methods by their full name.

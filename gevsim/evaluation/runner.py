@@ -62,14 +62,14 @@ def _level(gt: np.ndarray, is_log: bool, mean: str) -> float:
 
 
 def reconstruct_file(path: str | Path, method: str, *, mean: str = "ground-truth", c: float = 3.6,
-                     contrast: float | None = None,
+                     contrast_ln: float | None = None,
                      reference: str = "flicker") -> tuple[Reconstruction, np.ndarray, ToneMap]:
     """Reconstruct at every ground-truth frame time; returns (reconstruction, ground truth, tone map).
 
     ``method`` is a full name of :data:`~gevsim.evaluation.methods.METHODS` (``"dct"``,
     ``"dct_rc"``, ``"direct"``, ...). ``reference="no-flicker"`` scores against the scene with
     every lamp at its mean, the reference of the flicker-robustness question (what is in the
-    scene, not the lamp phase). ``contrast`` (the ln step of a brightness event) defaults to the
+    scene, not the lamp phase). ``contrast_ln`` (the ln step of a brightness event) defaults to the
     DVS thresholds stored in the file (the sensor's nominal ON/OFF thresholds), else 0.2.
     """
     try:
@@ -80,7 +80,7 @@ def reconstruct_file(path: str | Path, method: str, *, mean: str = "ground-truth
         raise ConfigError(f"unknown mean {mean!r}; choose from {', '.join(MEANS)}", key="mean")
     with EventReader(path) as r:
         gt, t_us, is_log = ground_truth(r, reference)
-        frames = entry.run(r, gt, t_us, c=c, contrast=contrast, is_log=is_log)
+        frames = entry.run(r, gt, t_us, c=c, contrast_ln=contrast_ln, is_log=is_log)
     rec = Reconstruction(method, entry.stream, t_us, frames)
     for k in range(len(gt)):
         rec.frames[k] += _level(gt[k], is_log, mean) - rec.frames[k].mean()

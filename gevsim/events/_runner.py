@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gevsim._validate import real_array
 from gevsim.events import _kernels
 from gevsim.timebase import check_chunk
 
@@ -27,8 +28,7 @@ class SampledSignal:
     def steps(self, signal, t_s, *, name: str = "signal"):
         """Validate a chunk; return (signal (T, H, W), step starts, step ends, first-sample flag)."""
         v, t, prev = check_chunk(signal, t_s, shape=self.shape, name=name, after=self.t_s)
-        if v.size and not np.isfinite(v).all():
-            raise ValueError(f"{name} must be finite: {int((~np.isfinite(v)).sum())} values are NaN or infinite")
+        real_array(v, name)
         first = self.t_s is None
         return v, prev, t, first
 

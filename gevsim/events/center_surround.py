@@ -13,11 +13,10 @@ product of 1-D exponential kernels exp(-|x|/l').
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
 
+from gevsim._validate import real
 from gevsim.events.brightness import BrightnessEmulator
 from gevsim.pixel.params import EventParams
 
@@ -107,10 +106,8 @@ class CenterSurroundEmulator:
 
     def __init__(self, shape, params: EventParams, *, surround_length_px: float = 2.0,
                  surround_tau_s: float = 1e-3, rng: np.random.Generator):
-        if not (surround_length_px > 0 and math.isfinite(surround_length_px)):
-            raise ValueError(f"surround_length_px must be a positive number, got {surround_length_px!r}")
-        if not (surround_tau_s >= 0 and math.isfinite(surround_tau_s)):
-            raise ValueError(f"surround_tau_s must be >= 0, got {surround_tau_s!r}")
+        real(surround_length_px, "surround_length_px", low=0.0, low_open=True)
+        real(surround_tau_s, "surround_tau_s", low=0.0)
         self.dvs = BrightnessEmulator(shape, params, rng=rng)
         self.shape = self.dvs.shape
         self.surround_tau_s = float(surround_tau_s)

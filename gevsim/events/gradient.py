@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gevsim._validate import real, real_list
 from gevsim.events import _kernels
 from gevsim.events._kernels import EVENT_TABLE
 from gevsim.events._runner import SampledSignal, run_with_buffers
@@ -34,9 +35,7 @@ LN_THRESHOLDS = (0.05, 0.1, 0.2)
 
 def threshold_matrix(shape, thresholds: Sequence[float] = PAPER_THRESHOLDS) -> np.ndarray:
     """Theta(x, y) = thresholds[(x + y) mod n], shape (H, W)."""
-    t = np.asarray(thresholds, dtype=np.float64)
-    if t.ndim != 1 or len(t) == 0 or not np.all(np.isfinite(t)) or np.any(t <= 0):
-        raise ValueError(f"thresholds must be a non-empty list of positive numbers, got {list(thresholds)!r}")
+    t = np.asarray(real_list(thresholds, "thresholds", positive=True), dtype=np.float64)
     h, w = shape
     y, x = np.mgrid[0:h, 0:w]
     return t[(x + y) % len(t)]
@@ -94,42 +93,42 @@ class GradientEmulator:
     Parameters
     ----------
     shape : (H, W).
-    thresholds : the threshold set t_0 .. t_{n-1}, assigned by (x + y) mod n (or pass ``theta``).
+    thresholds_ln : the threshold set t_0 .. t_{n-1}, assigned by (x + y) mod n (or pass ``theta``),
+        in the units of the signal: ln photocurrent in the physical mode (frame mode, which feeds
+        linear frames as the paper does, passes thresholds in frame units such as 4/255).
     theta : an explicit (H, W) threshold matrix instead.
-    mismatch_sigma : per-comparator Gaussian threshold mismatch (same units), drawn with ``rng``.
+    mismatch_sigma_ln : per-comparator Gaussian threshold mismatch (same units), drawn with ``rng``.
     rc : resolution compression (H and W even).
     interpolate : timestamps at the interpolated crossing inside a step (physical mode); False
         stamps events with the sample time (frame mode, as in the paper).
-    hysteresis : comparator hysteresis (threshold units): a +-1 state returns to 0 only when
-        |G| < Theta - hysteresis. 0 (default) is the paper's definition; a design option
+    hysteresis_ln : comparator hysteresis (same units): a +-1 state returns to 0 only when
+        |G| < Theta - hysteresis_ln. 0 (default) is the paper's definition; a design option
         against noise-induced chatter of comparators sitting near their threshold.
     """
 
     dtype = GRADIENT_DTYPE
 
-    def __init__(self, shape, *, thresholds=LN_THRESHOLDS, theta=None, mismatch_sigma: float = 0.0,
-                 rc: bool = False, interpolate: bool = True, hysteresis: float = 0.0,
+    def __init__(self, shape, *, thresholds_ln=LN_THRESHOLDS, theta=None, mismatch_sigma_ln: float = 0.0,
+                 rc: bool = False, interpolate: bool = True, hysteresis_ln: float = 0.0,
                  rng: np.random.Generator | None = None):
         self.clock = SampledSignal(shape)
         self.shape = self.clock.shape
         if rc:
             _check_rc(self.shape)
-        base = threshold_matrix(self.shape, thresholds) if theta is None else np.asarray(theta, np.float64)
+        base = threshold_matrix(self.shape, thresholds_ln) if theta is None else np.asarray(theta, np.float64)
         if base.shape != self.shape:
             raise ValueError(f"theta must have shape {self.shape}, got {base.shape}")
         if not np.all(base > 0):
             raise ValueError("theta must be positive everywhere")
         theta2 = np.stack([base, base])
-        if mismatch_sigma:
+        if mismatch_sigma_ln:
             if not isinstance(rng, np.random.Generator):
                 raise TypeError("threshold mismatch needs rng=numpy.random.Generator")
-            theta2 = np.maximum(theta2 + mismatch_sigma * rng.standard_normal(theta2.shape), 0.05 * theta2)
+            theta2 = np.maximum(theta2 + mismatch_sigma_ln * rng.standard_normal(theta2.shape), 0.05 * theta2)
         self.theta = theta2  # (2, H, W): comparators of the X and Y axes
         self.rc = bool(rc)
         self.interpolate = bool(interpolate)
-        if not (0.0 <= hysteresis < float(base.min())):
-            raise ValueError(f"hysteresis must be in [0, smallest threshold), got {hysteresis!r}")
-        self.hysteresis = float(hysteresis)
+        self.hysteresis = real(hysteresis_ln, "hysteresis_ln", low=0.0, high=float(base.min()), high_open=True)
         self.g_prev = np.zeros((2,) + self.shape)
         self.state = np.zeros((2,) + self.shape, np.int8)
 

@@ -14,29 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from gevsim._validate import increasing, real, size
 from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, is_gradient
 
 
-def _size(width, height) -> tuple[int, int]:
-    for name, v in (("width", width), ("height", height)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v <= 0:
-            raise ValueError(f"{name} must be a positive integer, got {v!r}")
-    return int(width), int(height)
-
-
 def _frame_times(frame_t_us) -> np.ndarray:
-    ft = np.asarray(frame_t_us)
-    if ft.dtype.kind not in "iuf":
-        raise TypeError(f"frame_t_us must be numeric microseconds, got {ft.dtype}")
-    if ft.ndim != 1 or len(ft) == 0:
-        raise ValueError(f"frame_t_us must have shape (M,) with M >= 1, got {ft.shape}")
-    if ft.dtype.kind == "f" and not np.all(np.isfinite(ft)):
-        raise ValueError("frame_t_us must be finite")
-    bad = np.flatnonzero(np.diff(ft) <= 0)
-    if len(bad):
-        k = int(bad[0]) + 1
-        raise ValueError(f"frame_t_us must increase strictly: frame {k} at {ft[k]!r} us follows {ft[k - 1]!r} us")
-    return ft
+    return increasing(frame_t_us, "frame_t_us", what="frame", unit="us")
 
 
 def event_probability(events: np.ndarray, frame_t_us, *, width: int, height: int) -> np.ndarray:
@@ -56,7 +39,7 @@ def event_probability(events: np.ndarray, frame_t_us, *, width: int, height: int
     (frame_t[0], frame_t[-1]] are not counted.
     """
     check_events(events)
-    w, h = _size(width, height)
+    w, h = size(width, height)
     ft = _frame_times(frame_t_us)
     m = len(ft)
     if len(events) and (events["x"].min() < 0 or events["x"].max() >= w
@@ -86,10 +69,7 @@ def event_rates(events: np.ndarray, duration_s: float, *, width: int | None = No
     when ``width`` and ``height`` are given.
     """
     check_events(events)
-    if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float, np.number)) \
-            or not np.isfinite(duration_s) or duration_s <= 0:
-        raise ValueError(f"duration_s must be a positive number, got {duration_s!r}")
-    d = float(duration_s)
+    d = real(duration_s, "duration_s", low=0.0, low_open=True)
     rates = {"total": len(events) / d}
     if events.dtype == GRADIENT_DTYPE:
         p, axis = events["p"], events["axis"]
@@ -101,6 +81,6 @@ def event_rates(events: np.ndarray, duration_s: float, *, width: int | None = No
     if (width is None) != (height is None):
         raise ValueError("give both width and height, or neither")
     if width is not None:
-        w, h = _size(width, height)
+        w, h = size(width, height)
         rates["per_pixel_hz"] = rates["total"] / (w * h)
     return rates

@@ -34,19 +34,21 @@ import shutil
 import time
 import tomllib
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from gevsim import __version__
+from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
-from gevsim.render.manifest import check_render_overrides
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.io import EventReader, atomic_write_text, export_evreal
 from gevsim.reconstruct.tonemap import ToneMap
+from gevsim.render.quality import check_render_overrides
+from gevsim.timebase import TimeGrid
 
 KEYS = ("sequences", "seed", "scenes", "sensors", "emulators", "duration_s", "step_s", "chunk_steps",
         "frame_rate_hz", "evreal", "render", "randomize")
@@ -73,10 +75,7 @@ class DatasetConfig:
     seed: int = 0
     sensors: tuple[str, ...] = ("davis346",)
     emulators: tuple[str, ...] = ("dvs", "gradient", "gradient_rc")
-    duration_s: float | None = None
-    step_s: float = 1e-5
-    chunk_steps: int = 256
-    frame_rate_hz: float = 1000.0
+    time: TimeGrid = TimeGrid()
     evreal: bool = False
     render: dict = field(default_factory=dict)
     randomize: Randomize = Randomize()
@@ -123,14 +122,14 @@ def _randomize(r: TomlReader, table: dict) -> Randomize:
     where = "dataset.randomize"
     check_keys(table, list(Randomize.__dataclass_fields__), source=r.source, where=where)
     waves = _names(r, table, where, "waveforms", [], _one_of(RANDOM_WAVEFORMS, "waveform type"), empty=True)
-    mains = table.get("mains_hz", [50.0, 60.0])
-    if (not isinstance(mains, list) or not mains
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in mains)):
-        r.fail(f"{where}.mains_hz", f"expected a non-empty list of positive numbers, got {mains!r}")
+    try:
+        mains = real_list(table.get("mains_hz", [50.0, 60.0]), "mains_hz", positive=True)
+    except FieldError as err:
+        r.fail(f"{where}.mains_hz", str(err))
     d = Randomize()
     return Randomize(waves, _range(r, table, "frequency_hz", d.frequency_hz),
                      _range(r, table, "duty", d.duty, high=1.0), _range(r, table, "modulation", d.modulation, high=1.0),
-                     tuple(float(m) for m in mains), _range(r, table, "light_scale", d.light_scale))
+                     mains, _range(r, table, "light_scale", d.light_scale))
 
 
 def load_dataset_config(path: str | Path) -> DatasetConfig:
@@ -144,28 +143,23 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     check_keys(raw, ("dataset",), source=r.source, where="")
     ds = r.table(raw, "dataset")
     check_keys(ds, KEYS, source=r.source, where="dataset")
-    emulators = _names(r, ds, "dataset", "emulators", list(DatasetConfig.emulators), _one_of(tuple(EMULATORS), "emulator"))
+    emulators = _names(r, ds, "dataset", "emulators", list(DatasetConfig.emulators),
+                       _one_of(tuple(EMULATORS), "emulator"))
     render = r.table(ds, "render", "dataset.")
     check_render_overrides(render, r, "dataset.render")
     evreal = ds.get("evreal", False)
     if not isinstance(evreal, bool):
         r.fail("dataset.evreal", f"expected true or false, got {evreal!r}")
-    duration = ds.get("duration_s")
     config = DatasetConfig(
         scenes=_names(r, ds, "dataset", "scenes", None, load, base=path.parent),
         sequences=r.number(ds, "sequences", "dataset", positive=True, integer=True),
         seed=r.number(ds, "seed", "dataset", 0, minimum=0, integer=True),
         sensors=_names(r, ds, "dataset", "sensors", ["davis346"], load_preset, base=path.parent),
         emulators=emulators,
-        duration_s=None if duration is None else float(r.number(ds, "duration_s", "dataset", positive=True)),
-        step_s=float(r.number(ds, "step_s", "dataset", 1e-5, positive=True)),
-        chunk_steps=r.number(ds, "chunk_steps", "dataset", 256, positive=True, integer=True),
-        frame_rate_hz=float(r.number(ds, "frame_rate_hz", "dataset", 1000.0, minimum=0.0)),
+        time=TimeGrid.from_section(ds, source=r.source, where="dataset"),
         evreal=evreal, render=dict(render), randomize=_randomize(r, r.table(ds, "randomize", "dataset.")),
         source=str(path), text=path.read_text())
-    if config.duration_s is not None and config.step_s >= config.duration_s:
-        r.fail("dataset.step_s", f"{config.step_s} must be shorter than duration_s = {config.duration_s}")
-    if evreal and ("dvs" not in emulators or config.frame_rate_hz <= 0):
+    if evreal and ("dvs" not in emulators or config.time.frame_rate_hz <= 0):
         r.fail("dataset.evreal", "needs 'dvs' in dataset.emulators and frame_rate_hz > 0 (ground-truth frames)")
     return config
 
@@ -208,8 +202,7 @@ def sequence_parameters(config: DatasetConfig, index: int) -> dict:
 def sequence_config(config: DatasetConfig, params: dict) -> EmulationConfig:
     """The emulation config of one sequence: the dataset's base config with its drawn parameters."""
     base = EmulationConfig(scene=config.scenes[0], sensor=config.sensors[0], emulators=config.emulators,
-                           duration_s=config.duration_s, step_s=config.step_s, chunk_steps=config.chunk_steps,
-                           frame_rate_hz=config.frame_rate_hz, render=dict(config.render), source=config.source)
+                           **asdict(config.time), render=dict(config.render), source=config.source)
     return replace(base, scene=params["scene"], sensor=params["sensor"], seed=params["seed"],
                    light_scale=params["light_scale"], group_waveform=dict(params["waveforms"]))
 

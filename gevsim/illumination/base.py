@@ -7,30 +7,21 @@ period (or over its table span when it is not periodic).
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from typing import Any
 
 import numpy as np
 
+from gevsim import _validate
 from gevsim.config import FieldError  # noqa: F401  (re-exported for the waveform modules)
 
 __all__ = ["Waveform"]
 
 
-def real(obj: Any, name: str, *, low: float | None = None, high: float | None = None,
-         low_open: bool = False, high_open: bool = False) -> float:
-    """Coerce field ``name`` of ``obj`` to a finite float in a range and store it back."""
-    value = getattr(obj, name)
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise FieldError(name, f"{name}={value!r} must be a real number")
-    x = float(value)
-    if not math.isfinite(x):
-        raise FieldError(name, f"{name}={value!r} must be finite")
-    if low is not None and (x < low or (low_open and x == low)):
-        raise FieldError(name, f"{name}={value!r} must be {'>' if low_open else '>='} {low:g}")
-    if high is not None and (x > high or (high_open and x == high)):
-        raise FieldError(name, f"{name}={value!r} must be {'<' if high_open else '<='} {high:g}")
+def real(obj: Any, name: str, **bounds: Any) -> float:
+    """Check field ``name`` of ``obj`` with :func:`gevsim._validate.real` (same ``bounds``) and store it
+    back as a float."""
+    x = _validate.real(getattr(obj, name), name, **bounds)
     object.__setattr__(obj, name, x)
     return x
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gevsim._validate import integer
+
 from .base import Waveform
 
 __all__ = ["percent_flicker", "flicker_index", "modulation_spectrum"]
@@ -21,10 +23,9 @@ def _one_period(waveform: Waveform, samples: int) -> tuple[np.ndarray, float]:
     """Midpoint samples of one reference span, and the span's mean."""
     if not isinstance(waveform, Waveform):
         raise TypeError(f"waveform={waveform!r} is not a Waveform")
-    if int(samples) != samples or samples < 2:
-        raise ValueError(f"samples={samples!r} must be an integer >= 2")
+    samples = integer(samples, "samples", low=2)
     a, b = waveform.reference_span()
-    t = a + (np.arange(int(samples)) + 0.5) * ((b - a) / samples)
+    t = a + (np.arange(samples) + 0.5) * ((b - a) / samples)
     return waveform(t), waveform.mean_value
 
 
@@ -59,10 +60,9 @@ def modulation_spectrum(waveform: Waveform, *, harmonics: int = 10,
     Harmonic ``n`` has frequency ``n / period_s``; a waveform ``1 + m sin(...)``
     gives ``[m, 0, ...]``. Computed by FFT of ``samples`` points of one period.
     """
-    if int(harmonics) != harmonics or harmonics < 1:
-        raise ValueError(f"harmonics={harmonics!r} must be a positive integer")
+    harmonics = integer(harmonics, "harmonics", low=1)
     if samples < 2 * harmonics + 2:
         raise ValueError(f"samples={samples!r} too few for harmonics={harmonics!r}")
     w, _ = _one_period(waveform, samples)
     spec = np.fft.rfft(w) / w.size
-    return 2.0 * np.abs(spec[1:int(harmonics) + 1]) / spec[0].real
+    return 2.0 * np.abs(spec[1:harmonics + 1]) / spec[0].real

@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from gevsim._validate import real_array
+
 from .base import Waveform
 
 __all__ = ["mix", "mix_poses", "weights_at"]
@@ -46,8 +48,7 @@ def mix(basis: Any, weights: Any) -> np.ndarray:
     if w.shape[-1] != b.shape[0]:
         raise ValueError(f"weights have {w.shape[-1]} light groups (shape {w.shape}) "
                          f"but basis has {b.shape[0]} (shape {b.shape})")
-    if not np.all(np.isfinite(w)):
-        raise ValueError(f"weights must be finite, got {w!r}")
+    real_array(w, "weights")
     return np.tensordot(w.astype(dtype), b, axes=([-1], [0]))
 
 
@@ -122,16 +123,16 @@ def weights_at(waveforms: Sequence[Waveform], t_s: Any, *, average_over_s: Any =
     if t.ndim > 1:
         raise ValueError(f"t_s must be a scalar or 1-D, got shape {t.shape}")
     t = np.atleast_1d(t)
-    if not np.all(np.isfinite(t)):
-        raise ValueError(f"t_s must be finite, got {t_s!r}")
+    real_array(t, "t_s")
     if average_over_s is None:
         cols = [wf(t) for wf in waveforms]
     else:
         d = np.asarray(average_over_s, dtype=np.float64)
         if d.ndim > 1 or (d.ndim == 1 and d.shape != t.shape):
             raise ValueError(f"average_over_s must be a scalar or shape {t.shape}, got shape {d.shape}")
-        if not np.all(np.isfinite(d)) or np.any(d <= 0):
-            raise ValueError(f"average_over_s={average_over_s!r} must be finite and > 0")
+        real_array(d, "average_over_s")
+        if np.any(d <= 0):
+            raise ValueError(f"average_over_s must be > 0, got {average_over_s!r}")
         end = t + d
         cols = [wf.average(t, end) for wf in waveforms]
     if not cols:

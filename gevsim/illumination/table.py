@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from gevsim._validate import increasing, real_array
+
 from .base import FieldError, PeriodicWaveform, PiecewiseLinear, as_time
 
 __all__ = ["Table"]
@@ -46,17 +48,8 @@ class Table(PeriodicWaveform):
             raise FieldError("times_s", f"times_s needs at least 2 samples, got {t.size}")
         if v.shape != t.shape:
             raise FieldError("values", f"values has {v.size} samples but times_s has {t.size}")
-        steps = np.diff(t)
-        if np.any(steps <= 0):
-            k = int(np.argmax(steps <= 0))
-            raise FieldError(
-                "times_s",
-                f"times_s must be strictly increasing; times_s[{k + 1}]={t[k + 1]!r} "
-                f"follows times_s[{k}]={t[k]!r}",
-            )
-        if np.any(v < 0):
-            k = int(np.argmax(v < 0))
-            raise FieldError("values", f"values must be >= 0; values[{k}]={v[k]!r}")
+        increasing(t, "times_s", what="entry")
+        real_array(v, "values", nonnegative=True)
         if not isinstance(self.periodic, (bool, np.bool_)):
             raise FieldError("periodic", f"periodic={self.periodic!r} must be true or false")
         area = PiecewiseLinear(t, v).total
@@ -116,7 +109,4 @@ def _vector(seq: Any, name: str) -> np.ndarray:
         raise FieldError(name, f"{name}={seq!r} must be a sequence of real numbers") from None
     if arr.ndim != 1:
         raise FieldError(name, f"{name} must be one-dimensional, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        k = int(np.argmax(~np.isfinite(arr)))
-        raise FieldError(name, f"{name} must be finite; {name}[{k}]={arr[k]!r}")
-    return arr
+    return real_array(arr, name)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim._validate import FieldError, increasing, real
 from gevsim.errors import ConfigError, MissingExtraError
 from gevsim.io.evreal import import_evreal
 
@@ -63,20 +64,17 @@ def _natural_key(name: str):
 def _check_times(t: np.ndarray, n: int, *, source: str) -> np.ndarray:
     if len(t) != n:
         raise ConfigError(f"{len(t)} timestamps for {n} frames", source=source)
-    if not np.all(np.isfinite(t)):
-        raise ConfigError("timestamps must be finite", source=source)
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if len(bad):
-        k = int(bad[0]) + 1
-        raise ConfigError(f"timestamps must increase strictly: entry {k} ({t[k]!r} s) follows {t[k - 1]!r} s",
-                          source=source)
-    return t
+    try:
+        return increasing(t, "timestamps", what="entry")
+    except FieldError as err:
+        raise ConfigError(str(err), source=source) from None
 
 
 def _fps_times(fps, n: int, *, source: str) -> np.ndarray:
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not np.isfinite(fps) or fps <= 0:
-        raise ConfigError(f"fps must be a positive number, got {fps!r}", source=source, key="fps")
-    return np.arange(n) / float(fps)
+    try:
+        return np.arange(n) / real(fps, "fps", low=0.0, low_open=True)
+    except FieldError as err:
+        raise ConfigError(str(err), source=source, key="fps") from None
 
 
 def _read_timestamps(path: Path) -> np.ndarray:

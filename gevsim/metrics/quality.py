@@ -30,6 +30,8 @@ import os
 import numpy as np
 from skimage.metrics import mean_squared_error, structural_similarity
 
+from gevsim._validate import real, real_array
+
 SSIM_KWARGS = dict(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=1.0)
 """EVREAL's SsimMetric arguments."""
 TS_TOL_US = 1000
@@ -42,10 +44,7 @@ def _pair(pred, gt):
     if pred.ndim != 2 or gt.shape != pred.shape:
         raise ValueError(f"pred and gt must be 2-D grayscale frames of equal shape, got {pred.shape} and {gt.shape}")
     for name, a in (("pred", pred), ("gt", gt)):
-        if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
-            raise TypeError(f"{name} must be a real-valued array, got dtype {a.dtype}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"{name} contains NaN or infinite values")
+        real_array(a, name)
     return np.clip(pred.astype(np.float64), 0.0, 1.0), np.clip(gt.astype(np.float64), 0.0, 1.0)
 
 
@@ -132,10 +131,9 @@ def pair_by_timestamp(pred_t_us, gt_t_us, *, tolerance_us=TS_TOL_US):
     pt, gt_t = np.asarray(pred_t_us, dtype=np.float64), np.asarray(gt_t_us, dtype=np.float64)
     if pt.ndim != 1 or gt_t.ndim != 1:
         raise ValueError(f"timestamps must be 1-D, got shapes {pt.shape} and {gt_t.shape}")
-    if not (np.all(np.isfinite(pt)) and np.all(np.isfinite(gt_t))):
-        raise ValueError("timestamps contain NaN or infinite values")
-    if not (np.isfinite(tolerance_us) and tolerance_us >= 0):
-        raise ValueError(f"tolerance_us must be finite and >= 0, got {tolerance_us!r}")
+    real_array(pt, "pred_t_us")
+    real_array(gt_t, "gt_t_us")
+    real(tolerance_us, "tolerance_us", low=0.0)
     if gt_t.size > 1 and np.any(np.diff(gt_t) < 0):
         raise ValueError("gt_t_us must be non-decreasing")
     if gt_t.size == 0 or pt.size == 0:

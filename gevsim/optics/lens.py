@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gevsim.optics._validate import finite_nonnegative, positive_number
+from gevsim._validate import real, real_array, size
 
 __all__ = ["Lens", "focal_plane_irradiance", "field_angle_map", "cos4_map"]
 
@@ -51,12 +51,12 @@ class Lens:
     focal_length_m: float = 8e-3
 
     def __post_init__(self):
-        object.__setattr__(self, "f_number", positive_number(self.f_number, name="f_number"))
+        object.__setattr__(self, "f_number", real(self.f_number, "f_number", low=0.0, low_open=True))
         object.__setattr__(
-            self, "transmission", positive_number(self.transmission, name="transmission", upper=1.0)
+            self, "transmission", real(self.transmission, "transmission", low=0.0, low_open=True, high=1.0)
         )
         object.__setattr__(
-            self, "focal_length_m", positive_number(self.focal_length_m, name="focal_length_m")
+            self, "focal_length_m", real(self.focal_length_m, "focal_length_m", low=0.0, low_open=True)
         )
 
     @property
@@ -66,7 +66,7 @@ class Lens:
 
     def fov_x_deg(self, width: int, *, pitch_m: float) -> float:
         """Horizontal field of view (degrees) of ``width`` pixels of pitch ``pitch_m``."""
-        pitch_m = positive_number(pitch_m, name="pitch_m")
+        pitch_m = real(pitch_m, "pitch_m", low=0.0, low_open=True)
         return math.degrees(2.0 * math.atan(width * pitch_m / (2.0 * self.focal_length_m)))
 
 
@@ -91,11 +91,11 @@ def focal_plane_irradiance(radiance, *, lens: Lens, cos4=None) -> np.ndarray:
     """
     if not isinstance(lens, Lens):
         raise TypeError(f"lens must be a gevsim.optics.Lens, got {type(lens).__name__}")
-    L = finite_nonnegative(radiance, name="radiance")
+    L = real_array(radiance, "radiance", nonnegative=True)
     out = L * L.dtype.type(lens.irradiance_factor)
     if cos4 is None:
         return out
-    c4 = finite_nonnegative(cos4, name="cos4").astype(L.dtype, copy=False)
+    c4 = real_array(cos4, "cos4", nonnegative=True).astype(L.dtype, copy=False)
     if c4.ndim != 2:
         raise ValueError(f"cos4 must be an (H, W) map, got shape {c4.shape}")
     n_big = int(np.count_nonzero(c4 > 1.0))
@@ -123,10 +123,8 @@ def field_angle_map(width: int, height: int, *, fov_x_deg: float) -> np.ndarray:
     numpy.ndarray
         (height, width) float64 array.
     """
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    fov = positive_number(fov_x_deg, name="fov_x_deg")
+    width, height = size(width, height)
+    fov = real(fov_x_deg, "fov_x_deg", low=0.0, low_open=True)
     if fov >= 180.0:
         raise ValueError(f"fov_x_deg must be < 180 for a pinhole camera, got {fov!r}")
     f_px = (width / 2.0) / math.tan(math.radians(fov) / 2.0)

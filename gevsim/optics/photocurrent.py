@@ -24,7 +24,7 @@ import numpy as np
 from scipy import constants
 from scipy.integrate import trapezoid
 
-from gevsim.optics._validate import finite_nonnegative
+from gevsim._validate import real, real_array
 from gevsim.optics.lens import Lens
 from gevsim.optics.photometry import K_M_LM_PER_W, _spectrum_arrays, illuminance_lux, photopic_lef
 from gevsim.optics.sensor import Pixel, quantum_efficiency
@@ -72,10 +72,8 @@ def photocurrent_a(irradiance_y, *, pixel: Pixel, responsivity_a_per_lm: float) 
     """
     if not isinstance(pixel, Pixel):
         raise TypeError(f"pixel must be a gevsim.optics.Pixel, got {type(pixel).__name__}")
-    r = float(responsivity_a_per_lm)
-    if not np.isfinite(r) or r < 0:
-        raise ValueError(f"responsivity_a_per_lm must be finite and >= 0, got {responsivity_a_per_lm!r}")
-    y = finite_nonnegative(irradiance_y, name="irradiance_y")
+    r = real(responsivity_a_per_lm, "responsivity_a_per_lm", low=0.0)
+    y = real_array(irradiance_y, "irradiance_y", nonnegative=True)
     return illuminance_lux(y) * (pixel.area_m2 * r)
 
 

@@ -22,6 +22,7 @@ import colour
 import numpy as np
 from scipy.integrate import trapezoid
 
+from gevsim._validate import real, real_array
 from gevsim.errors import ConfigError, suggest
 
 __all__ = [
@@ -151,8 +152,9 @@ def _spectrum_arrays(sd) -> tuple[np.ndarray, np.ndarray]:
     sd = lamp_spectrum(sd)
     w = np.asarray(sd.wavelengths, dtype=float)
     s = np.asarray(sd.values, dtype=float)
-    if w.size < 2 or not np.all(np.isfinite(s)) or np.any(s < 0):
-        raise ValueError(f"spectrum {sd.name!r} must have >= 2 finite, non-negative samples")
+    if w.size < 2:
+        raise ValueError(f"spectrum {sd.name!r} must have >= 2 samples, got {w.size}")
+    real_array(s, f"spectrum {sd.name!r}", nonnegative=True)
     return w, s
 
 
@@ -195,9 +197,7 @@ def spectrum_to_rgb(sd, *, luminance_cd_m2: float) -> np.ndarray:
     numpy.ndarray
         (3,) photopic-equivalent radiance in W/(m^2 sr).
     """
-    lv = float(luminance_cd_m2)
-    if not np.isfinite(lv) or lv < 0:
-        raise ValueError(f"luminance_cd_m2 must be finite and >= 0, got {luminance_cd_m2!r}")
+    lv = real(luminance_cd_m2, "luminance_cd_m2", low=0.0)
     w, s = _spectrum_arrays(sd)
     cmfs = _on_grid(colour.MSDS_CMFS[_CMFS], w)
     xyz = trapezoid(cmfs * s[:, None], w, axis=0)

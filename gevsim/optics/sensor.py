@@ -16,7 +16,7 @@ import colour
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from gevsim.optics._validate import positive_number
+from gevsim._validate import increasing, real
 
 __all__ = ["SILICON_QE_FSI", "silicon_qe", "silicon_qe_sd", "quantum_efficiency", "Pixel"]
 
@@ -51,8 +51,7 @@ def _as_table(table, *, name: str) -> tuple[tuple[float, ...], tuple[float, ...]
         raise ValueError(
             f"{name} table needs two 1-D sequences of equal length >= 2, got {w.shape}, {v.shape}"
         )
-    if not (np.all(np.isfinite(w)) and np.all(np.diff(w) > 0)):
-        raise ValueError(f"{name} wavelengths must be finite and strictly increasing")
+    increasing(w, f"{name} wavelength_nm", unit="nm")
     bad = int(np.count_nonzero(~np.isfinite(v) | (v < 0) | (v > 1)))
     if bad:
         raise ValueError(f"{name} has {bad} value(s) outside [0, 1]")
@@ -97,7 +96,7 @@ def quantum_efficiency(wavelength_nm, *, qe=None) -> np.ndarray:
     if qe is None:
         return silicon_qe(x)
     if isinstance(qe, (int, float, np.integer, np.floating)) and not isinstance(qe, bool):
-        return np.full_like(x, positive_number(qe, name="qe", upper=1.0))
+        return np.full_like(x, real(qe, "qe", low=0.0, low_open=True, high=1.0))
     return silicon_qe(x, table=qe)
 
 
@@ -122,14 +121,14 @@ class Pixel:
     qe: object = None
 
     def __post_init__(self):
-        object.__setattr__(self, "pitch_m", positive_number(self.pitch_m, name="pitch_m"))
+        object.__setattr__(self, "pitch_m", real(self.pitch_m, "pitch_m", low=0.0, low_open=True))
         object.__setattr__(
-            self, "fill_factor", positive_number(self.fill_factor, name="fill_factor", upper=1.0)
+            self, "fill_factor", real(self.fill_factor, "fill_factor", low=0.0, low_open=True, high=1.0)
         )
         qe = self.qe
         if qe is not None:
             if isinstance(qe, (int, float, np.integer, np.floating)) and not isinstance(qe, bool):
-                qe = positive_number(qe, name="qe", upper=1.0)
+                qe = real(qe, "qe", low=0.0, low_open=True, high=1.0)
             else:
                 qe = _as_table(qe, name="qe")
         object.__setattr__(self, "qe", qe)

@@ -10,24 +10,15 @@ and PRNU are fixed patterns drawn once per sensor.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.constants import e as ELEMENTARY_CHARGE_C
 
+from gevsim._validate import increasing, integer, real, real_array
 from gevsim.config import FieldError, FromTable
 
 __all__ = ["ApsParams", "ApsSensor", "exposure_electrons", "photon_transfer", "system_gain_from_ptc"]
-
-
-def _number(value, name: str, *, low: float, low_open: bool = False) -> float:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise FieldError(name, f"{name}={value!r} must be a real number")
-    x = float(value)
-    if not math.isfinite(x) or x < low or (low_open and x == low):
-        raise FieldError(name, f"{name}={value!r} must be finite and {'>' if low_open else '>='} {low:g}")
-    return x
 
 
 @dataclass(frozen=True)
@@ -55,16 +46,12 @@ class ApsParams(FromTable):
     fill_factor_ratio: float = 1.0
 
     def __post_init__(self):
-        bits = self.bit_depth
-        is_int = isinstance(bits, (int, np.integer)) and not isinstance(bits, (bool, np.bool_))
-        if not is_int or not 8 <= bits <= 16:
-            raise FieldError("bit_depth", f"bit_depth={bits!r} must be an integer in 8..16")
-        object.__setattr__(self, "bit_depth", int(bits))
+        object.__setattr__(self, "bit_depth", integer(self.bit_depth, "bit_depth", low=8, high=16))
         for name, low, low_open in (("full_well_e", 0.0, True), ("read_noise_e", 0.0, False),
                                     ("dark_current_e_per_s", 0.0, False), ("dsnu_e", 0.0, False),
                                     ("prnu", 0.0, False), ("system_gain_dn_per_e", 0.0, True),
                                     ("offset_dn", 0.0, False), ("fill_factor_ratio", 0.0, True)):
-            object.__setattr__(self, name, _number(getattr(self, name), name, low=low, low_open=low_open))
+            object.__setattr__(self, name, real(getattr(self, name), name, low=low, low_open=low_open))
         if self.prnu >= 1.0:
             raise FieldError("prnu", f"prnu={self.prnu!r} must be < 1 (a relative sigma)")
         if self.offset_dn > self.max_dn:
@@ -75,20 +62,6 @@ class ApsParams(FromTable):
     def max_dn(self) -> int:
         """Largest output code, ``2**bit_depth - 1``."""
         return (1 << self.bit_depth) - 1
-
-
-def _real_array(x, name: str) -> np.ndarray:
-    arr = np.asarray(x)
-    if arr.dtype.kind not in "biuf":
-        raise TypeError(f"{name} must be a real numeric array, got dtype {arr.dtype}")
-    arr = arr.astype(np.float64, copy=False)
-    if not np.all(np.isfinite(arr)):
-        n_bad = int(np.count_nonzero(~np.isfinite(arr)))
-        raise ValueError(f"{name} has {n_bad} non-finite value(s) (NaN or inf) out of {arr.size}")
-    if np.any(arr < 0):
-        n_neg = int(np.count_nonzero(arr < 0))
-        raise ValueError(f"{name} has {n_neg} negative value(s) out of {arr.size} (min {float(arr.min())!r})")
-    return arr
 
 
 def exposure_electrons(photocurrent_a, t_edges_s, frame_start_s, exposure_s) -> np.ndarray:
@@ -111,19 +84,17 @@ def exposure_electrons(photocurrent_a, t_edges_s, frame_start_s, exposure_s) -> 
         ``int I(t) dt / q`` over ``[start, start + exposure_s)``, exact for the
         step current (cumulative charge at the edges plus the fractional step).
     """
-    current = _real_array(photocurrent_a, "photocurrent_a")
-    edges = np.asarray(t_edges_s, dtype=np.float64)
+    current = real_array(photocurrent_a, "photocurrent_a", nonnegative=True, dtype=np.float64)
+    edges = increasing(np.asarray(t_edges_s, dtype=np.float64), "t_edges_s")
     if current.ndim < 1:
         raise ValueError(f"photocurrent_a must have shape (T, H, W), got {current.shape}")
     if edges.shape != (current.shape[0] + 1,):
         raise ValueError(f"t_edges_s must have shape (T + 1,) = ({current.shape[0] + 1},) for "
                          f"photocurrent_a of shape {current.shape}, got {edges.shape}")
-    if not np.all(np.isfinite(edges)) or np.any(np.diff(edges) <= 0):
-        raise ValueError("t_edges_s must be finite and strictly increasing")
-    starts = np.atleast_1d(np.asarray(frame_start_s, dtype=np.float64))
-    if starts.ndim != 1 or not np.all(np.isfinite(starts)):
-        raise ValueError(f"frame_start_s must be a finite 1-D array, got shape {starts.shape}")
-    exposure = _number(exposure_s, "exposure_s", low=0.0, low_open=True)
+    starts = real_array(np.atleast_1d(np.asarray(frame_start_s, dtype=np.float64)), "frame_start_s")
+    if starts.ndim != 1:
+        raise ValueError(f"frame_start_s must be a 1-D array, got shape {starts.shape}")
+    exposure = real(exposure_s, "exposure_s", low=0.0, low_open=True)
     ends = starts + exposure
     tol = 4 * np.finfo(np.float64).eps * max(abs(edges[0]), abs(edges[-1]), exposure)
     outside = (starts < edges[0] - tol) | (ends > edges[-1] + tol)
@@ -163,11 +134,11 @@ class ApsSensor:
         self.prnu_gain = np.maximum(1.0 + params.prnu * rng.standard_normal(shape), 0.0)
 
     def _check(self, electrons_mean, exposure_s) -> tuple[np.ndarray, float]:
-        electrons = _real_array(electrons_mean, "electrons_mean")
+        electrons = real_array(electrons_mean, "electrons_mean", nonnegative=True, dtype=np.float64)
         if electrons.shape[-2:] != self.shape:
             raise ValueError(f"electrons_mean must end in the sensor shape {self.shape}, "
                              f"got {electrons.shape}")
-        return electrons, _number(exposure_s, "exposure_s", low=0.0)
+        return electrons, real(exposure_s, "exposure_s", low=0.0)
 
     def read(self, electrons_mean, exposure_s, *, rng: np.random.Generator, output: str = "dn") -> np.ndarray:
         """Read noisy frames (EMVA 1288) from the mean photo-electrons of each exposure.

@@ -11,20 +11,8 @@ from dataclasses import dataclass
 
 from scipy.constants import Boltzmann, elementary_charge
 
+from gevsim._validate import real
 from gevsim.config import FieldError, FromTable
-
-
-def _check(cls_name: str, name: str, value, *, positive=False, nonnegative=False, allow_inf=False, upper=None):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
-        raise FieldError(name, f"{cls_name}.{name} must be a number, got {value!r}")
-    if math.isinf(value) and not allow_inf:
-        raise FieldError(name, f"{cls_name}.{name} must be finite, got {value!r}")
-    if positive and not value > 0:
-        raise FieldError(name, f"{cls_name}.{name} must be > 0, got {value!r}")
-    if nonnegative and not value >= 0:
-        raise FieldError(name, f"{cls_name}.{name} must be >= 0, got {value!r}")
-    if upper is not None and value > upper:
-        raise FieldError(name, f"{cls_name}.{name} must be <= {upper}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -55,15 +43,14 @@ class PhotoreceptorParams(FromTable):
     v0_v: float = 2.5
 
     def __post_init__(self):
-        n = type(self).__name__
-        _check(n, "cutoff_hz", self.cutoff_hz, positive=True, allow_inf=True)
-        _check(n, "cutoff_ref_photocurrent_a", self.cutoff_ref_photocurrent_a, positive=True)
-        _check(n, "max_cutoff_hz", self.max_cutoff_hz, positive=True, allow_inf=True)
+        real(self.cutoff_hz, "cutoff_hz", low=0, low_open=True, allow_inf=True)
+        real(self.cutoff_ref_photocurrent_a, "cutoff_ref_photocurrent_a", low=0, low_open=True)
+        real(self.max_cutoff_hz, "max_cutoff_hz", low=0, low_open=True, allow_inf=True)
         if self.second_pole_hz is not None:
-            _check(n, "second_pole_hz", self.second_pole_hz, positive=True)
-        _check(n, "slope_factor", self.slope_factor, positive=True)
-        _check(n, "temperature_k", self.temperature_k, positive=True)
-        _check(n, "v0_v", self.v0_v)
+            real(self.second_pole_hz, "second_pole_hz", low=0, low_open=True)
+        real(self.slope_factor, "slope_factor", low=0, low_open=True)
+        real(self.temperature_k, "temperature_k", low=0, low_open=True)
+        real(self.v0_v, "v0_v")
 
     @property
     def thermal_voltage_v(self) -> float:
@@ -117,11 +104,11 @@ class NoiseParams(FromTable):
         if not isinstance(self.shot_noise, bool):
             raise FieldError("shot_noise", f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
         for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "flicker_noise_v"):
-            _check(n, name, getattr(self, name), nonnegative=True)
-        _check(n, "prnu", self.prnu, nonnegative=True, upper=0.5)
-        _check(n, "read_noise_bandwidth_hz", self.read_noise_bandwidth_hz, positive=True)
-        _check(n, "flicker_noise_low_hz", self.flicker_noise_low_hz, positive=True)
-        _check(n, "flicker_noise_high_hz", self.flicker_noise_high_hz, positive=True)
+            real(getattr(self, name), name, low=0)
+        real(self.prnu, "prnu", low=0, high=0.5)
+        real(self.read_noise_bandwidth_hz, "read_noise_bandwidth_hz", low=0, low_open=True)
+        real(self.flicker_noise_low_hz, "flicker_noise_low_hz", low=0, low_open=True)
+        real(self.flicker_noise_high_hz, "flicker_noise_high_hz", low=0, low_open=True)
         if self.flicker_noise_high_hz <= self.flicker_noise_low_hz:
             raise FieldError("flicker_noise_high_hz", f"{n}.flicker_noise_high_hz must exceed flicker_noise_low_hz, "
                              f"got {self.flicker_noise_high_hz!r} <= {self.flicker_noise_low_hz!r}")
@@ -150,9 +137,8 @@ class EventParams(FromTable):
     leak_rate_spread: float = 0.0
 
     def __post_init__(self):
-        n = type(self).__name__
-        _check(n, "threshold_on_ln", self.threshold_on_ln, positive=True)
-        _check(n, "threshold_off_ln", self.threshold_off_ln, positive=True)
+        real(self.threshold_on_ln, "threshold_on_ln", low=0, low_open=True)
+        real(self.threshold_off_ln, "threshold_off_ln", low=0, low_open=True)
         for name in ("threshold_mismatch_ln", "refractory_s", "leak_rate_hz", "leak_rate_spread"):
-            _check(n, name, getattr(self, name), nonnegative=True)
+            real(getattr(self, name), name, low=0)
 

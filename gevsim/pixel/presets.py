@@ -9,11 +9,10 @@ responsivity for ``bandwidth_reference_spectrum``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from gevsim.config import read_toml, resource_tomls
+from gevsim.config import TomlReader, read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.pixel.aps import ApsParams
 from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams
@@ -100,22 +99,18 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
             raise ConfigError(f"missing table [{table}]", source=src, key=table)
     sensor = dict(raw["sensor"])
     check_keys(sensor, SENSOR_KEYS, source=src, where="sensor")
+    r = TomlReader(src)
     for key in ("width", "height"):
-        if not isinstance(sensor.get(key), int) or isinstance(sensor.get(key), bool) or sensor[key] < 1:
-            raise ConfigError(f"expected a positive integer, got {sensor.get(key)!r}", source=src, key=f"sensor.{key}")
+        r.number(sensor, key, "sensor", positive=True, integer=True)
     for key, upper in (("pixel_pitch_m", 1e-3), ("fill_factor", 1.0)):
-        value = sensor.get(key)
-        if not isinstance(value, (int, float)) or isinstance(value, bool) or not 0 < value <= upper:
-            raise ConfigError(f"expected a number in (0, {upper}], got {value!r}", source=src, key=f"sensor.{key}")
+        r.number(sensor, key, "sensor", positive=True, maximum=upper)
     receptor = dict(raw["photoreceptor"])
     if "cutoff_ref_lux" in receptor:
         lux = receptor.pop("cutoff_ref_lux")
         if "cutoff_ref_photocurrent_a" in receptor:
             raise ConfigError("give cutoff_ref_lux or cutoff_ref_photocurrent_a, not both", source=src,
                               key="photoreceptor.cutoff_ref_lux")
-        if not isinstance(lux, (int, float)) or isinstance(lux, bool) or not (lux > 0 and math.isfinite(lux)):
-            raise ConfigError(f"expected a positive number, got {lux!r}", source=src,
-                              key="photoreceptor.cutoff_ref_lux")
+        r.number(raw["photoreceptor"], "cutoff_ref_lux", "photoreceptor", positive=True)
         receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
             lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
             spectrum=sensor.get("bandwidth_reference_spectrum", "D65"), source=src)

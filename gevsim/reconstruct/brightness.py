@@ -37,10 +37,13 @@ import math
 import numpy as np
 from numba import njit
 
+from gevsim._validate import increasing, real, real_array, size
 from gevsim.events.types import BRIGHTNESS_DTYPE
 
 HIGH_PASS_CUTOFF_RAD_S = 2.0 * math.pi * 0.1  # assumed: authors' code default, 0.1 Hz
 COMPLEMENTARY_CUTOFF_RAD_S = 2.0 * math.pi * 0.5  # assumed: authors' code default, 0.5 Hz
+#: Default ON and OFF contrast step of an event (ln units): the usual DVS threshold (assumed).
+CONTRAST_LN = 0.2
 
 _INF = np.iinfo(np.int64).max
 
@@ -81,45 +84,16 @@ def _filter(ex, ey, et, ec, frames, frame_t, out_t, state, last, alpha):
     return out
 
 
-def _check_size(width, height):
-    for name, v in (("width", width), ("height", height)):
-        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v <= 0:
-            raise ValueError(f"{name} must be a positive integer, got {v!r}")
-    return int(width), int(height)
-
-
 def _check_times(t, name):
-    t = np.asarray(t)
-    if t.ndim != 1 or t.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D array of microsecond timestamps, got shape {t.shape}")
-    if not np.issubdtype(t.dtype, np.integer):
-        if not np.all(np.isfinite(t)) or np.any(t != np.round(t)):
-            raise ValueError(f"{name} must hold integer microseconds")
-    t = t.astype(np.int64)
-    if t.size > 1 and np.any(np.diff(t) <= 0):
-        raise ValueError(f"{name} must be strictly increasing")
-    return t
+    t = increasing(t, name, unit="us")
+    if t.dtype.kind == "f" and np.any(t != np.round(t)):
+        raise ValueError(f"{name} must hold integer microseconds")
+    return t.astype(np.int64)
 
 
 def _contrasts(c_on, c_off):
-    for name, v in (("contrast_on", c_on), ("contrast_off", c_off)):
-        if not (np.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be a positive finite log-intensity step, got {v!r}")
-    return float(c_on), float(c_off)
-
-
-def _split_contrast(contrast):
-    if np.ndim(contrast) == 0:
-        return _contrasts(contrast, contrast)
-    if np.shape(contrast) != (2,):
-        raise ValueError(f"contrast must be a scalar or an (on, off) pair, got {contrast!r}")
-    return _contrasts(*contrast)
-
-
-def _check_cutoff(cutoff_rad_s):
-    if not (np.isfinite(cutoff_rad_s) and cutoff_rad_s >= 0):
-        raise ValueError(f"cutoff_rad_s must be finite and >= 0, got {cutoff_rad_s!r}")
-    return float(cutoff_rad_s)
+    return (real(c_on, "contrast_on_ln", low=0.0, low_open=True),
+            real(c_off, "contrast_off_ln", low=0.0, low_open=True))
 
 
 def _unpack(events, width, height, c_on, c_off):
@@ -139,12 +113,13 @@ def _unpack(events, width, height, c_on, c_off):
 
 
 def _run(events, frame_t_us, frames, frames_t, width, height, c_on, c_off, alpha, initial):
-    width, height = _check_size(width, height)
+    width, height = size(width, height)
     out_t = _check_times(frame_t_us, "frame_t_us")
     x, y, t, c = _unpack(events, width, height, c_on, c_off)
     state = np.zeros((height, width)) if initial is None else np.array(initial, dtype=np.float64)
-    if state.shape != (height, width) or not np.all(np.isfinite(state)):
-        raise ValueError(f"initial must be a finite ({height}, {width}) array, got shape {state.shape}")
+    if state.shape != (height, width):
+        raise ValueError(f"initial must have the shape ({height}, {width}) of the sensor, got {state.shape}")
+    real_array(state, "initial")
     t0 = min(out_t[0], frames_t[0] if frames_t.size else out_t[0], t[0] if t.size else out_t[0])
     last = np.full((height, width), t0, dtype=np.int64)
     if frames is None:
@@ -152,27 +127,30 @@ def _run(events, frame_t_us, frames, frames_t, width, height, c_on, c_off, alpha
     return _filter(x, y, t, c, frames, frames_t, out_t, state, last, alpha)
 
 
-def direct_integration(events, frame_t_us, *, width, height, contrast_on=0.2, contrast_off=0.2, initial=None):
+def direct_integration(events, frame_t_us, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN,
+                       initial=None):
     """Per-pixel sum of contrast steps up to each of ``frame_t_us``: (M, H, W) float64 log frames.
 
+    An ON event adds ``contrast_on_ln``, an OFF event subtracts ``contrast_off_ln`` (ln units).
     ``initial`` (H, W) is the log image before the first event (default zeros).
     """
-    c_on, c_off = _contrasts(contrast_on, contrast_off)
+    c_on, c_off = _contrasts(contrast_on_ln, contrast_off_ln)
     empty_t = np.zeros(0, dtype=np.int64)
     return _run(events, frame_t_us, None, empty_t, width, height, c_on, c_off, 0.0, initial)
 
 
 def high_pass_filter(
-    events, frame_t_us, *, width, height, contrast=0.2, cutoff_rad_s=HIGH_PASS_CUTOFF_RAD_S, initial=None
+    events, frame_t_us, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN,
+    cutoff_rad_s=HIGH_PASS_CUTOFF_RAD_S, initial=None
 ):
     """Events-only high-pass filter of Scheerlinck et al. (ACCV 2018): (M, H, W) float64 log frames.
 
     Each pixel decays as exp(-cutoff_rad_s dt) between its events and jumps by
-    the event contrast (``contrast``: a scalar or an (on, off) pair, ln units).
+    the event contrast (``contrast_on_ln`` / ``-contrast_off_ln``, ln units).
     ``initial`` (default zeros) is the state at the earliest event or output time.
     """
-    c_on, c_off = _split_contrast(contrast)
-    alpha = _check_cutoff(cutoff_rad_s)
+    c_on, c_off = _contrasts(contrast_on_ln, contrast_off_ln)
+    alpha = real(cutoff_rad_s, "cutoff_rad_s", low=0.0)
     empty_t = np.zeros(0, dtype=np.int64)
     return _run(events, frame_t_us, None, empty_t, width, height, c_on, c_off, alpha, initial)
 
@@ -185,7 +163,8 @@ def complementary_filter(
     *,
     width,
     height,
-    contrast=0.2,
+    contrast_on_ln=CONTRAST_LN,
+    contrast_off_ln=CONTRAST_LN,
     cutoff_rad_s=COMPLEMENTARY_CUTOFF_RAD_S,
     initial=None,
 ):
@@ -193,20 +172,20 @@ def complementary_filter(
 
     dL/dt = events - cutoff_rad_s (L - L_F), with L_F = ``frames_log[k]`` from
     ``frames_t_us[k]`` until the next frame (``frames_log[0]`` before the first
-    one). ``initial`` is the state at the earliest timestamp given (default
+    one). Events step by ``contrast_on_ln`` / ``-contrast_off_ln`` (ln units).
+    ``initial`` is the state at the earliest timestamp given (default
     ``frames_log[0]``). Returns (M, H, W) float64 log frames at ``frame_t_us_out``.
     """
-    c_on, c_off = _split_contrast(contrast)
-    alpha = _check_cutoff(cutoff_rad_s)
-    width, height = _check_size(width, height)
+    c_on, c_off = _contrasts(contrast_on_ln, contrast_off_ln)
+    alpha = real(cutoff_rad_s, "cutoff_rad_s", low=0.0)
+    width, height = size(width, height)
     frames = np.asarray(frames_log, dtype=np.float64)
     frames_t = _check_times(frames_t_us, "frames_t_us")
     if frames.ndim != 3 or frames.shape[1:] != (height, width) or frames.shape[0] != frames_t.size:
         raise ValueError(
             f"frames_log must have shape ({frames_t.size}, {height}, {width}) to match frames_t_us, got {frames.shape}"
         )
-    if not np.all(np.isfinite(frames)):
-        raise ValueError("frames_log must be finite (log of a positive frame)")
+    real_array(frames, "frames_log")
     frames = np.ascontiguousarray(frames)
     if initial is None:
         initial = frames[0]

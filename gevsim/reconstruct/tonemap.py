@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gevsim._validate import real, real_array
+
 
 @dataclass(frozen=True)
 class ToneMap:
@@ -22,15 +24,16 @@ class ToneMap:
     high: float = 1.0
 
     def __post_init__(self):
-        if not (np.isfinite(self.low) and np.isfinite(self.high) and self.high > self.low):
-            raise ValueError(f"tone map needs finite low < high, got low={self.low!r}, high={self.high!r}")
+        real(self.low, "low")
+        if not real(self.high, "high") > self.low:
+            raise ValueError(f"tone map needs low < high, got low={self.low!r}, high={self.high!r}")
 
     @classmethod
     def from_ground_truth(cls, log_frames: np.ndarray, *, percentiles=(1.0, 99.0)) -> ToneMap:
         """Fixed by the ground-truth log frames (all of them together)."""
-        values = np.asarray(log_frames, dtype=np.float64)
-        if values.size == 0 or not np.all(np.isfinite(values)):
-            raise ValueError("ground-truth frames must be non-empty and finite")
+        values = real_array(log_frames, "log_frames", dtype=np.float64)
+        if values.size == 0:
+            raise ValueError("ground-truth frames must be non-empty")
         low, high = np.percentile(values, percentiles)
         if high <= low:  # a flat image: centre it
             low, high = low - 0.5, high + 0.5

@@ -31,9 +31,16 @@ from gevsim.errors import ConfigError
 from gevsim.illumination import Waveform, weights_at
 from gevsim.io import read_exr_layers, write_exr_layers
 from gevsim.optics import luminance
-from gevsim.render.convergence import (MIN_BATCHES, BatchAccumulator, NoiseReport, mixture_weights,
-                                       next_batch_spp, sample_se_ln, error_percentiles)
-from gevsim.render.manifest import RenderSettings
+from gevsim.render.convergence import (
+    MIN_BATCHES,
+    BatchAccumulator,
+    NoiseReport,
+    error_percentiles,
+    mixture_weights,
+    next_batch_spp,
+    sample_se_ln,
+)
+from gevsim.render.quality import RenderSettings, resolve_target
 from gevsim.render.scene import MitsubaScene, content_hash, exact_count
 from gevsim.render.trajectory import Pose
 
@@ -45,14 +52,6 @@ CACHE_VERSION = 2
 MAX_BATCH_PATHS = 2**22
 #: Samples per pixel of the first batches in noise-target mode.
 FIRST_BATCH_SPP = 4
-#: ``noise_target_ln = "auto"``: this fraction of the smallest event threshold. Measured on the office
-#: (128x96, ideal sensor, benchmarks/flicker_convergence.py): at a p99 flicker-metric error of 0.4 x 0.05 ln
-#: (~9000 spp) the flicker-induced gradient rate is +3.7 % and +8.3 % (two seeds) above a 65536-spp reference,
-#: and halving the target (~35000 spp) changes it by -2.5 % and -6.5 %; DVS moves by < 0.3 %. The issue's
-#: first guess, 0.1 x, would need ~500k spp (p99 falls as 1/sqrt(spp): 0.0070 at 65536).
-AUTO_TARGET_FRACTION = 0.4
-#: ... which, when rendering without a sensor, is this (ln units; a typical gradient threshold).
-DEFAULT_THRESHOLD_LN = 0.05
 #: Samples per pixel of the denoiser's albedo and normal guides, and the batch index of their seed.
 AUX_SPP = 64
 AUX_BATCH = 2**20
@@ -122,27 +121,22 @@ def quality_request(settings: RenderSettings, mixtures: np.ndarray, target_ln: f
             "denoise": settings.denoise}
 
 
-def resolve_target(settings: RenderSettings, smallest_threshold_ln: float | None = None) -> float | None:
-    """The noise target in ln units (None in fixed mode); ``"auto"`` is 0.4 x the smallest event threshold."""
-    if settings.noise_target_ln is None:
-        return None
-    if settings.noise_target_ln == "auto":
-        return AUTO_TARGET_FRACTION * (smallest_threshold_ln or DEFAULT_THRESHOLD_LN)
-    return float(settings.noise_target_ln)
-
-
 def batch_seed(seed: int, batch: int) -> int:
     """Sampler seed of batch ``batch`` of a render with seed ``seed`` (independent streams)."""
     return int(np.random.SeedSequence([int(seed), int(batch)]).generate_state(1)[0])
 
 
-def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = None):
+def render_pose(
+    scene: MitsubaScene, request: dict, *, budget_s: float | None = None, one_pass: bool | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, NoiseReport]:
     """Render the current pose's K group images in batches until the request is met.
 
     Returns ``(images, noise, se_map, report)``: (K, H, W, C) mean and noise
     sample (:meth:`BatchAccumulator.noise`), the (H, W) error map
     (:meth:`BatchAccumulator.se_ln`) and a :class:`NoiseReport`. A fixed
     request renders ``spp`` in an even number of equal batches (rounded up).
+    ``one_pass=False`` renders each group on its own (the scene's choice by
+    default; see :meth:`MitsubaScene.render_groups`), for comparisons.
     """
     r = scene.manifest.render
     acc = BatchAccumulator(request["mixtures"], floor_rel=request["floor_rel"], metric=request["metric"])
@@ -151,7 +145,7 @@ def render_pose(scene: MitsubaScene, request: dict, *, budget_s: float | None = 
     start = time.perf_counter()
 
     def batch(spp: int) -> None:
-        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches))
+        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches), one_pass=one_pass)
         acc.add(images, luminance(images), scene.sample_count(spp))
 
     if target is None:
@@ -268,7 +262,9 @@ class BasisSet:
     def shape(self) -> tuple[int, int, int]:
         return self.images.shape[2:]
 
-    def radiance(self, times_s: Sequence[float], *, exposure_s: float | None = None, flicker: bool = True) -> np.ndarray:
+    def radiance(
+        self, times_s: Sequence[float], *, exposure_s: float | None = None, flicker: bool = True
+    ) -> np.ndarray:
         """Radiance (T, H, W, C) at ``times_s`` (averaged over ``exposure_s`` after each when given).
 
         With ``flicker=False`` every waveform is replaced by its mean (the

@@ -45,6 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gevsim._validate import integer, real
+
 #: Batches before the first check of the stop rule (7 degrees of freedom).
 MIN_BATCHES = 8
 #: Batches per growth step: batch size is kept near N / BATCH_SPREAD so B stays >= this.
@@ -135,8 +137,7 @@ class BatchAccumulator:
         mixtures = np.asarray(mixtures, float)
         if mixtures.ndim != 2 or mixtures.shape[0] < 1:
             raise ValueError(f"BatchAccumulator: mixtures must be (M, K), got shape {mixtures.shape}")
-        if not floor_rel > 0:
-            raise ValueError(f"BatchAccumulator: floor_rel must be > 0, got {floor_rel!r}")
+        real(floor_rel, "floor_rel", low=0.0, low_open=True)
         if metric not in METRICS:
             raise ValueError(f"BatchAccumulator: metric must be one of {METRICS}, got {metric!r}")
         reference = np.ones(mixtures.shape[1]) if reference is None else np.asarray(reference, float)
@@ -161,8 +162,7 @@ class BatchAccumulator:
         if images.ndim != 4 or images.shape[0] != k or lum.shape != images.shape[:3]:
             raise ValueError(f"BatchAccumulator.add: expected ({k}, H, W, C) images and ({k}, H, W) luminance, "
                              f"got {images.shape} and {lum.shape}")
-        if spp < 1:
-            raise ValueError(f"BatchAccumulator.add: spp must be >= 1, got {spp}")
+        integer(spp, "spp", low=1)
         y = np.tensordot(self.mixtures, lum, axes=1)  # (M + 1, H, W)
         half = 0 if self._half_spp[0] <= self._half_spp[1] else 1
         weighted = images.astype(np.float64) * spp

@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim._validate import real_array
+
 #: OIDN 1.4 C API constants (oidn.h).
 _DEVICE_TYPE_CPU = 1
 _FORMAT_FLOAT3 = 3
@@ -107,8 +109,8 @@ def denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray) -> np.nda
     for name, img in (("albedo", alb), ("normal", nrm)):
         if img.shape != (h, w, 3):
             raise ValueError(f"denoise: {name} must be ({h}, {w}, 3), got {img.shape}")
-    if not (np.all(np.isfinite(rgb)) and np.all(np.isfinite(alb)) and np.all(np.isfinite(nrm))):
-        raise ValueError("denoise: color, albedo and normal must be finite")
+    for name, img in (("color", rgb), ("albedo", alb), ("normal", nrm)):
+        real_array(img, name)
     out = np.empty_like(rgb)
     oidn = _library()
     with _LOCK:

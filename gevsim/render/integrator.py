@@ -124,7 +124,8 @@ def render_groups(scene, groups: Sequence[Sequence], *, spp: int, seed: int, max
         wo = si.to_local(ds_em.d)
         f_em, pdf_em = bsdf.eval_pdf(bsdf_ctx, si, wo, active_em)
         mis_em = dr.select(ds_em.delta, 1.0, _power_heuristic(ds_em.pdf, pdf_em))
-        acc = add(acc, _group_of(ds_em.emitter, group_ptrs), dr.select(active_em, beta * mis_em * f_em * em_weight, 0.0))
+        contribution = dr.select(active_em, beta * mis_em * f_em * em_weight, 0.0)
+        acc = add(acc, _group_of(ds_em.emitter, group_ptrs), contribution)
 
         # Continue the path by sampling the BSDF.
         bs, bsdf_weight = bsdf.sample(bsdf_ctx, si, sampler.next_1d(active_next), sampler.next_2d(active_next),

@@ -11,7 +11,6 @@ its tables key by key.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,19 +18,13 @@ import numpy as np
 
 from gevsim.config import TomlReader, read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
-from gevsim.illumination import Waveform, from_spec as waveform_from_spec
-
+from gevsim.illumination import Waveform
+from gevsim.illumination import from_spec as waveform_from_spec
+from gevsim.render.quality import RENDER_KEYS, RenderSettings, quality_settings, render_settings
+from gevsim.render.quality import check_render_overrides as check_render_overrides  # re-exported (it lived here)
 
 TABLES = ("scene", "render", "sequence", "camera", "motion", "light_groups", "optics")
 SCENE_KEYS = ("name", "description", "builder", "options", "extends")
-QUALITY_KEYS = ("noise_target_ln", "noise_percentile", "max_spp", "time_budget_s", "sampler", "noise_floor_rel",
-                "noise_metric", "denoise")
-NOISE_METRICS = ("flicker", "absolute")  # see gevsim.render.convergence
-RENDER_KEYS = ("width", "height", "spp", "seed", "flavour", "max_depth", "max_px_per_pose") + QUALITY_KEYS
-#: ``[render]`` keys that emulation, study and dataset configs may override.
-OVERRIDE_KEYS = ("width", "height", "spp", "seed", "max_px_per_pose") + QUALITY_KEYS
-#: Mitsuba samplers a scene may use (``[render] sampler``).
-SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 SEQUENCE_KEYS = ("duration_s",)
 CAMERA_KEYS = ("fov_deg", "keyframes")
 CAMERA_KEY_KEYS = ("t_s", "origin", "target", "up")
@@ -87,48 +80,6 @@ class Motion:
     objects: tuple[str, ...]
     keyframes: tuple[ObjectKey, ...]
     axis: tuple[float, float, float] = (0.0, 1.0, 0.0)
-
-
-@dataclass(frozen=True)
-class RenderSettings:
-    """How a scene is rendered.
-
-    Two modes. *Fixed*: ``spp`` samples per pixel (drafts). *Noise target*
-    (when ``noise_target_ln`` is set): render in independent batches until the
-    ``noise_percentile`` percentile over pixels of the standard error of
-    ln(luminance), for the lamp mixtures the waveforms reach, is at most
-    ``noise_target_ln``, or ``max_spp`` / ``time_budget_s`` is reached (see
-    :mod:`gevsim.render.convergence`). ``noise_target_ln = "auto"`` is 0.4 x
-    the smallest event threshold of the sensor an emulation uses (0.4 x 0.05 ln
-    when rendering alone; the fraction is measured, see ``AUTO_TARGET_FRACTION``). ``noise_floor_rel`` keeps near-black pixels from
-    dominating: the error is taken relative to (value + noise_floor_rel x the
-    mixture's mean). ``noise_metric`` chooses the error measured: of the change
-    of ln luminance between lamp mixtures (``"flicker"``, default) or of ln
-    luminance itself (``"absolute"``). ``denoise = true`` passes the finished
-    group images through Intel Open Image Denoise (:mod:`gevsim.render.denoise`):
-    biased, off by default; its bias is measured in ``benchmarks/README.md``.
-    """
-
-    width: int = 346
-    height: int = 260
-    spp: int = 16
-    seed: int = 0
-    flavour: str = "rgb"
-    max_depth: int = 5
-    max_px_per_pose: float = 1.0
-    noise_target_ln: float | str | None = None
-    noise_percentile: float = 99.0
-    max_spp: int = 16384
-    time_budget_s: float | None = None
-    sampler: str = "multijitter"
-    noise_floor_rel: float = 1e-3
-    noise_metric: str = "flicker"
-    denoise: bool = False
-
-    @property
-    def targeted(self) -> bool:
-        """Whether this is the noise-target mode (else a fixed ``spp``)."""
-        return self.noise_target_ln is not None
 
 
 @dataclass(frozen=True)
@@ -221,21 +172,7 @@ def load(scene: str | Path) -> SceneManifest:
     if not isinstance(options, dict):
         r.fail("scene.options", f"expected a table, got {options!r}")
 
-    rt = r.table(raw, "render")
-    check_keys(rt, RENDER_KEYS, source=r.source, where="render")
-    d = RenderSettings()
-    render = RenderSettings(
-        width=r.number(rt, "width", "render", d.width, positive=True, integer=True),
-        height=r.number(rt, "height", "render", d.height, positive=True, integer=True),
-        spp=r.number(rt, "spp", "render", d.spp, positive=True, integer=True),
-        seed=r.number(rt, "seed", "render", d.seed, minimum=0, integer=True),
-        flavour=str(rt.get("flavour", d.flavour)),
-        max_depth=r.number(rt, "max_depth", "render", d.max_depth, positive=True, integer=True),
-        max_px_per_pose=float(r.number(rt, "max_px_per_pose", "render", d.max_px_per_pose, positive=True)),
-        **quality_settings(rt, r, "render"),
-    )
-    if render.flavour not in ("rgb", "mono", "spectral"):
-        r.fail("render.flavour", f"expected 'rgb', 'mono' or 'spectral', got {render.flavour!r}")
+    render = render_settings(r.table(raw, "render"), r)
 
     seq = r.table(raw, "sequence")
     check_keys(seq, SEQUENCE_KEYS, source=r.source, where="sequence")
@@ -323,55 +260,6 @@ def load(scene: str | Path) -> SceneManifest:
     )
 
 
-def check_render_overrides(table: dict, r: TomlReader, where: str) -> None:
-    """Validate a ``[render]`` override table of an emulation, study or dataset config."""
-    check_keys(table, OVERRIDE_KEYS, source=r.source, where=where)
-    for key in ("width", "height", "spp"):
-        if key in table:
-            r.number(table, key, where, positive=True, integer=True)
-    if "seed" in table:
-        r.number(table, "seed", where, minimum=0, integer=True)
-    if "max_px_per_pose" in table:
-        r.number(table, "max_px_per_pose", where, positive=True)
-    quality_settings(table, r, where)
-
-
-def quality_settings(table: dict, r: TomlReader, where: str) -> dict:
-    """The render-quality keys of a ``[render]`` table, validated (errors name the key)."""
-    out = {}
-    if "spp" in table and "noise_target_ln" in table:
-        r.fail(f"{where}.spp", "give either spp (a fixed sample count, for drafts) or noise_target_ln "
-                               "(render until the noise target is met), not both")
-    if "noise_target_ln" in table:
-        target = table["noise_target_ln"]
-        if target != "auto":
-            target = float(r.number(table, "noise_target_ln", where, positive=True))
-        out["noise_target_ln"] = target
-    if "noise_percentile" in table:
-        p = float(r.number(table, "noise_percentile", where, positive=True))
-        if p > 100:
-            r.fail(f"{where}.noise_percentile", f"must be in (0, 100], got {p!r}")
-        out["noise_percentile"] = p
-    if "max_spp" in table:
-        out["max_spp"] = r.number(table, "max_spp", where, minimum=1, integer=True)
-    if "time_budget_s" in table:
-        out["time_budget_s"] = float(r.number(table, "time_budget_s", where, positive=True))
-    if "noise_floor_rel" in table:
-        out["noise_floor_rel"] = float(r.number(table, "noise_floor_rel", where, positive=True))
-    if "denoise" in table:
-        if not isinstance(table["denoise"], bool):
-            r.fail(f"{where}.denoise", f"expected true or false, got {table['denoise']!r}")
-        out["denoise"] = table["denoise"]
-    for key, what, options in (("noise_metric", "noise metric", NOISE_METRICS), ("sampler", "sampler", SAMPLERS)):
-        if key in table:
-            value = table[key]
-            if value not in options:
-                r.fail(f"{where}.{key}", f"unknown {what} {value!r}{suggest(str(value), options)}; "
-                                         f"one of {', '.join(options)}")
-            out[key] = value
-    return out
-
-
 def _check_times(times, r: TomlReader, where: str) -> None:
     if any(b <= a for a, b in zip(times, times[1:])):
         r.fail(where, f"keyframe times must increase strictly, got {times}")
@@ -404,12 +292,13 @@ def _light_group(name: str, spec: dict, r: TomlReader) -> LightGroup:
             lamp_spectrum(spectrum)
         except ConfigError as exc:
             r.fail(f"{where}.spectrum", str(exc))
+    mode = modes[0]
     emission = Emission(
         spectrum=spectrum,
-        radiance_w_m2_sr=r.vector(spec, "radiance_w_m2_sr", where, nonnegative=True) if modes[0] == "radiance_w_m2_sr" else None,
-        luminance_cd_m2=float(r.number(spec, "luminance_cd_m2", where, minimum=0.0)) if modes[0] == "luminance_cd_m2" else None,
-        illuminance_lux=float(r.number(spec, "illuminance_lux", where, minimum=0.0)) if modes[0] == "illuminance_lux" else None,
-        at_m=float(r.number(spec, "at_m", where, positive=True)) if modes[0] == "illuminance_lux" else None,
+        radiance_w_m2_sr=r.vector(spec, mode, where, nonnegative=True) if mode == "radiance_w_m2_sr" else None,
+        luminance_cd_m2=float(r.number(spec, mode, where, minimum=0.0)) if mode == "luminance_cd_m2" else None,
+        illuminance_lux=float(r.number(spec, mode, where, minimum=0.0)) if mode == "illuminance_lux" else None,
+        at_m=float(r.number(spec, "at_m", where, positive=True)) if mode == "illuminance_lux" else None,
     )
     return LightGroup(name=str(name), emitters=tuple(emitters), waveform=waveform, emission=emission)
 
@@ -428,15 +317,14 @@ def override(manifest: SceneManifest, *, source: str | None = None, **changes) -
     changes = {k: v for k, v in changes.items() if v is not None}
     raw = copy.deepcopy(manifest.raw)
     duration = changes.pop("duration_s", manifest.duration_s)
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not duration > 0 \
-            or not math.isfinite(duration):
-        raise ConfigError(f"duration must be > 0, got {duration!r}", source=source, key="duration_s")
+    r = TomlReader(source or "overrides")
+    r.number({"duration_s": duration}, "duration_s", "sequence", positive=True)
     for key, value in changes.items():
         if key not in RENDER_KEYS:
             raise ConfigError(f"cannot override {key!r}{suggest(key, RENDER_KEYS)}", source=source, key=key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and key != "seed" and value <= 0:
-            raise ConfigError(f"must be > 0, got {value!r}", source=source, key=f"render.{key}")
-    changes.update(quality_settings(changes, TomlReader(source or "overrides"), "render"))
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and key != "seed":
+            r.number(changes, key, "render", positive=True)
+    changes.update(quality_settings(changes, r, "render"))
     render = raw.setdefault("render", {})
     if "spp" in changes:  # a fixed sample count: the draft mode
         changes["noise_target_ln"] = None

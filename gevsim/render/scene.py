@@ -27,6 +27,8 @@ log = logging.getLogger(__name__)
 # Spectral emitters with zero radiance make Mitsuba fail ("no probability
 # mass"); they are scaled by this factor instead (error ~ K * 1e-9, negligible).
 SPECTRAL_OFF = 1e-9
+#: Mitsuba plugin types that are emitters themselves (a shape emits through its ``emitter`` child).
+EMITTER_TYPES = ("point", "spot", "area", "constant", "directional", "envmap")
 _RADIANCE_PREFIXES = ("emitter.radiance.", "radiance.", "intensity.", "irradiance.")
 
 
@@ -189,9 +191,7 @@ class MitsubaScene:
                     )
         grouped = {e for g in m.light_groups for e in g.emitters}
         for sid, entry in shapes.items():
-            emits = isinstance(entry, dict) and (
-                "emitter" in entry or entry.get("type") in ("point", "spot", "area", "constant", "directional", "envmap")
-            )
+            emits = isinstance(entry, dict) and ("emitter" in entry or entry.get("type") in EMITTER_TYPES)
             if emits and sid not in grouped:
                 raise ConfigError(
                     f"emitter {sid!r} belongs to no light group; add it to one so its waveform is known",

@@ -35,7 +35,7 @@ def test_gradient_events_are_the_papers_dense_encoding(rng, rc):
     assert got == expected
     assert set(ev["t"].tolist()) <= set(np.rint(t_s * 1e6).astype(int).tolist())
     # Lossless: decoding from the first frame's state gives the last frame's ternary gradients.
-    initial = GradientEmulator((8, 10), thresholds=PAPER_THRESHOLDS, rc=rc).ternary_of(frames[0])
+    initial = GradientEmulator((8, 10), thresholds_ln=PAPER_THRESHOLDS, rc=rc).ternary_of(frames[0])
     np.testing.assert_array_equal(decode(ev, initial), tern(frames[-1]))
 
 
@@ -73,7 +73,7 @@ def test_input_errors(rng):
         emulate_frames(good, [0.0, 0.1], rng=rng)
     bad = good.copy()
     bad[1, 2, 3] = bad[2, 0, 0] = np.nan
-    with pytest.raises(ValueError, match="2 values are NaN"):
+    with pytest.raises(ValueError, match=r"frames has 2 non-finite value\(s\)"):
         emulate_frames(bad, t, rng=rng)
     with pytest.raises(ValueError, match="even height and width, got 3x6"):
         emulate_frames(good[:, :3], t, emulators=["gradient_rc"], rng=rng)
@@ -100,7 +100,7 @@ def test_run_frames_writes_events_ground_truth_and_decoding_state(tmp_path, rng)
         assert list(t_us) == [0, 33333, 66667, 100000]
         for name, rc in (("gradient", False), ("gradient_rc", True)):
             state = r.array(layout.initial_state_key(name))
-            em = GradientEmulator((6, 8), thresholds=PAPER_THRESHOLDS, rc=rc, interpolate=False)
+            em = GradientEmulator((6, 8), thresholds_ln=PAPER_THRESHOLDS, rc=rc, interpolate=False)
             np.testing.assert_array_equal(state, em.ternary_of(frames[0]))
             np.testing.assert_array_equal(decode(r.read(f"{name}_events"), state), em.ternary_of(frames[-1]))
         assert r.attrs["mode"] == "frames" and r.seed == 3

@@ -105,7 +105,7 @@ def test_brightness_reconstruction_uses_the_sensors_contrast_step(emulation):
     events = load_preset("davis346").events
     np.testing.assert_allclose(stored, [events.threshold_on_ln, events.threshold_off_ln])
     a, _, _ = reconstruct_file(emulation, "direct")  # the stored step
-    b, _, _ = reconstruct_file(emulation, "direct", contrast=2 * events.threshold_on_ln)
+    b, _, _ = reconstruct_file(emulation, "direct", contrast_ln=2 * events.threshold_on_ln)
     # Before mean matching, doubling the step doubles every frame's deviation from its mean.
     da = a.frames - a.frames.mean(axis=(1, 2), keepdims=True)
     db = b.frames - b.frames.mean(axis=(1, 2), keepdims=True)

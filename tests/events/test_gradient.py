@@ -58,7 +58,7 @@ def test_resolution_compression_averages_pairs():
 @given(arrays(np.float64, (5, 6, 8), elements=st.floats(0, 1)), st.booleans(), st.booleans())
 def test_decoding_the_events_recovers_the_ternary_state(frames, rc, interpolate):
     """Lossless: initial state + events give the ternary gradients of every frame."""
-    em = GradientEmulator((6, 8), thresholds=(4 / 255, 8 / 255, 16 / 255), rc=rc, interpolate=interpolate)
+    em = GradientEmulator((6, 8), thresholds_ln=(4 / 255, 8 / 255, 16 / 255), rc=rc, interpolate=interpolate)
     t_s = 0.01 * np.arange(5)
     events = [em.process(frames[k:k + 1], t_s[k:k + 1]) for k in range(5)]
     state = em.initial_state
@@ -72,7 +72,7 @@ def test_decoding_the_events_recovers_the_ternary_state(frames, rc, interpolate)
 def test_frame_mode_events_equal_the_table_applied_to_consecutive_frames():
     rng = np.random.default_rng(0)
     frames = rng.random((2, 10, 12))
-    em = GradientEmulator((10, 12), thresholds=(4 / 255, 8 / 255, 16 / 255), interpolate=False)
+    em = GradientEmulator((10, 12), thresholds_ln=(4 / 255, 8 / 255, 16 / 255), interpolate=False)
     em.process(frames[:1], [0.0])
     ev = em.process(frames[1:], [0.04])
     expected = encode(em.ternary_of(frames[0]), em.ternary_of(frames[1]))
@@ -99,7 +99,7 @@ def test_interpolated_timestamp_of_a_ramp():
     # G_X grows linearly from 0 to 0.2 over 1 ms; threshold 0.05 at (0, 0): crossing at 250 us.
     v = np.zeros((2, 2, 2))
     v[1, :, 1] = 0.2
-    em = GradientEmulator((2, 2), thresholds=(0.05,))
+    em = GradientEmulator((2, 2), thresholds_ln=(0.05,))
     ev = em.process(v, [0.0, 1e-3])
     x_events = ev[ev["axis"] == 0]
     assert len(x_events) == 2 and np.all(x_events["t"] == 250) and np.all(x_events["p"] == 1)
@@ -110,7 +110,7 @@ def test_chunked_equals_one_shot_bit_for_bit():
     v = np.cumsum(rng.normal(0, 0.03, (90, 20, 22)), axis=0)
     t = np.cumsum(rng.uniform(1e-6, 3e-6, 90))
     for rc in (False, True):
-        kw = dict(rc=rc, mismatch_sigma=0.01)
+        kw = dict(rc=rc, mismatch_sigma_ln=0.01)
         one = GradientEmulator((20, 22), rng=np.random.default_rng(5), **kw).process(v, t)
         em = GradientEmulator((20, 22), rng=np.random.default_rng(5), **kw)
         cuts = [0, 1, 30, 31, 89, 90]
@@ -140,9 +140,9 @@ def test_rc_comparators_sit_at_even_positions():
     "kwargs, match",
     [
         (dict(rc=True, shape=(5, 6)), "even height and width"),
-        (dict(thresholds=(0.1, -0.2)), "positive"),
+        (dict(thresholds_ln=(0.1, -0.2)), "positive"),
         (dict(theta=np.ones((3, 3))), "shape"),
-        (dict(mismatch_sigma=0.1), "rng"),
+        (dict(mismatch_sigma_ln=0.1), "rng"),
     ],
 )
 def test_bad_configuration(kwargs, match):
@@ -168,11 +168,11 @@ def test_hysteresis_suppresses_chatter_near_threshold():
     v = np.zeros((len(g), 1, 2))
     v[:, 0, 1] = g
     t = 1e-4 * np.arange(len(g))
-    plain = GradientEmulator((1, 2), thresholds=(0.1,)).process(v, t)
-    hyst = GradientEmulator((1, 2), thresholds=(0.1,), hysteresis=0.02).process(v, t)
+    plain = GradientEmulator((1, 2), thresholds_ln=(0.1,)).process(v, t)
+    hyst = GradientEmulator((1, 2), thresholds_ln=(0.1,), hysteresis_ln=0.02).process(v, t)
     assert len(plain) == len(g) - 1 and len(hyst) == 0  # the first sample already sets T = 1
     with pytest.raises(ValueError, match="hysteresis"):
-        GradientEmulator((1, 2), thresholds=(0.1,), hysteresis=0.1)
+        GradientEmulator((1, 2), thresholds_ln=(0.1,), hysteresis_ln=0.1)
 
 
 @pytest.mark.parametrize("rc", [False, True])
@@ -180,7 +180,7 @@ def test_emulator_state_equals_the_numpy_definition_on_every_row(rc):
     """Including the last row and column (G = 0 there) and the last RC pair."""
     rng = np.random.default_rng(7)
     frames = rng.random((6, 6, 8))
-    em = GradientEmulator((6, 8), thresholds=(0.02, 0.05, 0.1), rc=rc)
+    em = GradientEmulator((6, 8), thresholds_ln=(0.02, 0.05, 0.1), rc=rc)
     for k in range(6):
         em.process(frames[k:k + 1], [0.1 * k])
         assert np.array_equal(em.state, em.ternary_of(frames[k]))

@@ -69,7 +69,7 @@ def test_rates_per_polarity_and_axis():
     g = _events(GRADIENT_DTYPE, [(0, 0, 1, 1, AXIS_X), (0, 0, 2, -1, AXIS_Y), (0, 0, 3, -1, AXIS_Y),
                                  (0, 0, 4, -1, AXIS_Y), (0, 0, 5, 1, AXIS_Y)])
     assert event_rates(g, 0.5) == {"total": 10.0, "+1": 4.0, "-1": 6.0, "x": 2.0, "y": 8.0}
-    with pytest.raises(ValueError, match="duration_s must be a positive number"):
+    with pytest.raises(ValueError, match="duration_s must be finite and > 0, got 0.0"):
         event_rates(g, 0.0)
     with pytest.raises(ValueError, match="both width and height"):
         event_rates(g, 1.0, width=4)

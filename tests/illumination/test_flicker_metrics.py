@@ -118,7 +118,7 @@ def test_modulation_spectrum_of_sinusoid_and_pwm():
 def test_metrics_reject_bad_arguments():
     with pytest.raises(TypeError, match="not a Waveform"):
         flicker_index(np.ones(3))
-    with pytest.raises(ValueError, match="harmonics=0"):
+    with pytest.raises(ValueError, match="harmonics must be a positive integer, got 0"):
         modulation_spectrum(DC(), harmonics=0)
-    with pytest.raises(ValueError, match="samples=1"):
+    with pytest.raises(ValueError, match="samples must be an integer >= 2, got 1"):
         flicker_index(DC(), samples=1)

@@ -190,7 +190,7 @@ def test_from_spec_builds_each_type():
         ({"type": "sinusoid", "frequency_hz": 10, "modulation": 1.2}, "lamp.modulation", "1.2"),
         ({"type": "fluorescent", "persistence_s": 1e-3, "modulation": 0.3}, "lamp.modulation", "not both"),
         ({"type": "table", "times_s": [0, 1, 2], "values": [0, 0, 0]}, "lamp.values", "zero mean"),
-        ({"type": "table", "times_s": [0, 1, 1], "values": [1, 2, 3]}, "lamp.times_s", "strictly increasing"),
+        ({"type": "table", "times_s": [0, 1, 1], "values": [1, 2, 3]}, "lamp.times_s", "increase strictly: entry 2"),
         ({"type": "table", "times_s": [0, 1], "values": [1, float("nan")]}, "lamp.values", "nan"),
         ({"type": "table", "times_s": [0, 1], "values": [1, -1]}, "lamp.values", "-1"),
         ({"type": "table", "times_s": [0, 1], "values": [1, 2, 3]}, "lamp.values", "3 samples"),
@@ -205,9 +205,9 @@ def test_from_spec_rejects_bad_input(spec, key, fragment):
 
 
 def test_direct_construction_raises_value_error_naming_value():
-    with pytest.raises(ValueError, match="duty=1.5"):
+    with pytest.raises(ValueError, match=r"duty must be finite and in \(0, 1\], got 1.5"):
         PWM(100.0, 1.5)
-    with pytest.raises(ValueError, match="reignition_fraction=1.0"):
+    with pytest.raises(ValueError, match=r"reignition_fraction must be finite and in \[0, 1\), got 1.0"):
         SodiumHID(reignition_fraction=1.0)
 
 

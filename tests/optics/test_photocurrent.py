@@ -60,7 +60,7 @@ def test_user_qe_table_and_bad_table():
     assert silicon_qe(800.0, table=table) == 0.0
     with pytest.raises(ValueError, match="qe has 1 value"):
         Pixel(qe=([400.0, 500.0], [0.2, 1.5]))
-    with pytest.raises(ValueError, match="strictly increasing"):
+    with pytest.raises(ValueError, match="increase strictly"):
         silicon_qe(500.0, table=([500.0, 400.0], [0.2, 0.2]))
 
 
@@ -131,7 +131,7 @@ def test_from_spec_builds_lens_and_pixel():
 def test_from_spec_rejects_unknown_key_and_bad_value():
     with pytest.raises(ConfigError, match=r"cam\.toml: optics\.fill_facter.*did you mean 'fill_factor'"):
         from_spec({"fill_facter": 0.3}, source="cam.toml")
-    with pytest.raises(ConfigError, match=r"optics\.f_number: f_number must be finite and > 0, got 0.0"):
+    with pytest.raises(ConfigError, match=r"optics\.f_number: f_number must be finite and > 0, got 0"):
         from_spec({"f_number": 0})
     with pytest.raises(ConfigError, match=r"optics\.pitch_m"):
         from_spec({"pitch_m": "9um"})

@@ -123,7 +123,7 @@ def test_numba_and_numpy_sor_agree(rng):
 
 def test_warm_start_over_frames_equals_more_iterations(rng):
     """Streaming SOR (paper's real-time setting): n frames of k sweeps = one solve of n k sweeps."""
-    em = GradientEmulator((24, 32), thresholds=PAPER_THRESHOLDS)
+    em = GradientEmulator((24, 32), thresholds_ln=PAPER_THRESHOLDS)
     state = em.ternary_of(rng.random((24, 32)))
     warm = GradientReconstructor((24, 32), em.theta, method="sor", iterations=10)
     for _ in range(5):
@@ -137,7 +137,7 @@ def test_warm_start_over_frames_equals_more_iterations(rng):
 
 def test_reconstruction_from_decoded_events_equals_reconstruction_from_the_frame(rng):
     frames = rng.random((3, 16, 20))
-    em = GradientEmulator((16, 20), thresholds=PAPER_THRESHOLDS, interpolate=False)
+    em = GradientEmulator((16, 20), thresholds_ln=PAPER_THRESHOLDS, interpolate=False)
     events = [em.process(frames[k:k + 1], [0.01 * k]) for k in range(3)]
     state = decode(np.concatenate(events[1:]), em.initial_state)
     rec = GradientReconstructor((16, 20), em.theta)
@@ -169,7 +169,7 @@ def scores():
         row = {}
         for key, thresholds, c, rc in (("three", PAPER_THRESHOLDS, 3.6, False), ("one", (4 / 255,), 4.3, False),
                                        ("rc", PAPER_THRESHOLDS, 3.6, True)):
-            em = GradientEmulator(SHAPE, thresholds=thresholds, rc=rc)
+            em = GradientEmulator(SHAPE, thresholds_ln=thresholds, rc=rc)
             state = em.ternary_of(img)
             for method in ("dct", "sor"):
                 recon = reconstruct(state, em.theta, rc=rc, method=method, c=c, mean=img.mean())

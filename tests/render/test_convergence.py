@@ -86,11 +86,13 @@ class FakeScene:
         self.manifest = SimpleNamespace(render=settings)
         self.sigma, self.delay_s = sigma, delay_s
         self.rng = np.random.default_rng(7)
+        self.one_pass_seen = set()
 
     def sample_count(self, spp):
         return spp
 
-    def render_groups(self, *, spp, seed):
+    def render_groups(self, *, spp, seed, one_pass=None):
+        self.one_pass_seen.add(one_pass)
         time.sleep(self.delay_s)
         mu = np.array([1.0, 3.0])[:, None, None, None]
         noise = self.rng.standard_normal((2, 10, 20, 1)) * self.sigma / np.sqrt(spp)
@@ -127,6 +129,14 @@ def test_fixed_mode_renders_the_requested_samples():
     _, noise, _, report = render_pose(scene, request)
     assert report.stopped_by == "fixed" and report.spp == 24 and report.batches % 2 == 0
     assert noise.std() > 0
+    assert scene.one_pass_seen == {None}  # the scene's own choice
+
+
+def test_render_pose_passes_the_one_pass_choice_to_every_batch():
+    scene = FakeScene(spp=24)
+    request = quality_request(scene.manifest.render, mixture_weights([(0.0, 2.0), (1.0, 1.0)]), None)
+    _, _, _, report = render_pose(scene, request, one_pass=False)
+    assert scene.one_pass_seen == {False} and report.spp == 24
 
 
 def test_a_better_cached_render_serves_a_lesser_request():
