@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import multiprocessing
+import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 
@@ -22,12 +23,24 @@ from gevsim.errors import ConfigError, MissingExtraError, suggest
 log = logging.getLogger(__name__)
 
 
+#: Thread-pool variables a worker process gets unless the parent's environment sets them: one job per
+#: core, so each worker's BLAS/OpenMP/numba pools hold one thread (several would oversubscribe the cores).
+WORKER_THREADS_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def _single_threaded() -> None:
+    """Process-pool initializer: runs in the spawned worker before it imports numpy or numba."""
+    for name in WORKER_THREADS_ENV:
+        os.environ.setdefault(name, "1")
+
+
 @contextlib.contextmanager
 def _local(workers: int | None, scheduler: str | None, processes: bool) -> Iterator[Executor]:
-    """A spawn-context ``ProcessPoolExecutor`` of ``workers`` processes (default: the CPUs)."""
+    """A spawn-context ``ProcessPoolExecutor`` of ``workers`` single-threaded processes (default: the CPUs)."""
     if scheduler is not None:
         raise ConfigError("a scheduler address needs the dask executor", key="scheduler")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_single_threaded) as pool:
         yield pool
 
 
