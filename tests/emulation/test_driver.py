@@ -158,7 +158,6 @@ def test_summary_reads_back_in_windows_the_same_statistics(tmp_path, monkeypatch
 
 
 def test_light_overrides_need_no_rerender_and_act_linearly(tmp_path):
-
     base = load_config(config(tmp_path, sensor="ideal"))
     run(base, tmp_path / "a.h5", cache_dir=tmp_path / "c")
     brighter = dataclasses.replace(base, light_scale=2.0, text="")
@@ -177,7 +176,6 @@ def test_light_overrides_need_no_rerender_and_act_linearly(tmp_path):
 
 
 def test_programmatic_config_round_trips_through_toml(tmp_path):
-
     cfg = dataclasses.replace(load_config(config(tmp_path)), light_scale=0.5, group_scale={"lamp": 0.25},
                               group_waveform={"lamp": {"type": "pwm", "frequency_hz": 300.0, "duty": 0.5}})
     path = tmp_path / "round.toml"
