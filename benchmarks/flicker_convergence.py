@@ -64,16 +64,16 @@ def measure(label: str, render: dict, *, duration_s: float, cache: Path) -> dict
     with tempfile.TemporaryDirectory() as tmp:
         summary = run(config, Path(tmp) / "run.h5", setup=setup)
         floor = run(config, Path(tmp) / "floor.h5", setup=render_noise_floor(setup, frequency_hz=LAMP_HZ))
-    px = summary["width"] * summary["height"]
+    px = summary.width * summary.height
     q = setup.render_quality
     return {"label": label, "render": settings,
-            "gradient_ev_px_s": summary["rates_hz"]["gradient_events"] / px,
-            "dvs_ev_px_s": summary["rates_hz"]["events"] / px,
-            "gradient_floor_ev_px_s": floor["rates_hz"]["gradient_events"] / px,
-            "dvs_floor_ev_px_s": floor["rates_hz"]["events"] / px,
+            "gradient_ev_px_s": summary.rates_hz["gradient_events"] / px,
+            "dvs_ev_px_s": summary.rates_hz["events"] / px,
+            "gradient_floor_ev_px_s": floor.rates_hz["gradient_events"] / px,
+            "dvs_floor_ev_px_s": floor.rates_hz["events"] / px,
             "spp": q.get("spp_max"), "se_ln_p99": q.get("se_ln", {}).get("at_percentile"),
             "denoised": q.get("denoised"), "render_s": q.get("render_s"), "load_s": render_s,
-            "emulate_s": summary["total_s"]}
+            "emulate_s": summary.total_s}
 
 
 def main() -> None:

@@ -132,19 +132,19 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     finally:
         render_close()
         close()
-    print(f"gevsim: {summary['width']}x{summary['height']}, {summary['steps']} steps of "
-          f"{config.step_s * 1e6:g} us ({summary['duration_s'] * 1e3:g} ms), {summary['frames']} ground-truth frames;"
-          f" pixel model {summary['pixel_steps_per_s'] / 1e6:.1f} M pixel-steps/s", file=sys.stderr)
+    print(f"gevsim: {summary.width}x{summary.height}, {summary.steps} steps of "
+          f"{config.step_s * 1e6:g} us ({summary.duration_s * 1e3:g} ms), {summary.frames} ground-truth frames;"
+          f" pixel model {summary.pixel_steps_per_s / 1e6:.1f} M pixel-steps/s", file=sys.stderr)
     from gevsim.emulation.summary import summarize
 
     stats = summarize(args.out)
     print(f"{'stream':20s} {'events':>10s} {'events/s':>11s} {'per pixel/s':>11s} {'p/frame':>8s} "
           f"{'emulator s':>10s}")
-    for (name, count), seconds in zip(summary["counts"].items(), summary["event_s"].values()):
+    for (name, count), seconds in zip(summary.counts.items(), summary.event_s.values()):
         st = stats[name]
-        print(f"{name:20s} {count:10d} {st['rates_hz']['total']:11.4g} {st['rates_hz']['per_pixel_hz']:11.4g} "
-              f"{st['event_probability']:8.3f} {seconds:10.2f}")
-    print(f"gevsim: wrote {args.out} in {summary['total_s']:.1f} s", file=sys.stderr)
+        print(f"{name:20s} {count:10d} {st.rates_hz['total']:11.4g} {st.rates_hz['per_pixel_hz']:11.4g} "
+              f"{st.event_probability:8.3f} {seconds:10.2f}")
+    print(f"gevsim: wrote {args.out} in {summary.total_s:.1f} s", file=sys.stderr)
     return 0
 
 

@@ -24,6 +24,7 @@ from gevsim._validate import real
 from gevsim.emulation import layout
 from gevsim.emulation.config import EmulationConfig, check_consistency
 from gevsim.emulation.emulators import APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, SEED_SLOTS, make_emulator
+from gevsim.emulation.summary import RunSummary
 from gevsim.errors import ConfigError, suggest
 from gevsim.illumination import from_spec, mix_poses, weights_at
 from gevsim.io import EventWriter
@@ -145,8 +146,8 @@ def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.nd
 
 def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
         flicker: bool = True, noise: bool = True, progress: Progress | None = None,
-        render_progress: Progress | None = None, setup: Setup | None = None) -> dict:
-    """Run an emulation and write ``out`` (HDF5). Returns a summary (counts, rates, timings).
+        render_progress: Progress | None = None, setup: Setup | None = None) -> RunSummary:
+    """Run an emulation and write ``out`` (HDF5). Returns its :class:`RunSummary` (counts, rates, timings).
 
     ``setup`` (from :func:`prepare` with the same config) skips loading the basis again.
     """
@@ -205,13 +206,12 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
                 progress(c + 1, len(chunks))
         wr.close(t_end_us=int(round(setup.duration_s * 1e6)))
     pixel_steps = n_steps * h * w
-    return {
-        "out": str(out), "width": w, "height": h, "steps": n_steps, "duration_s": setup.duration_s,
-        "counts": counts, "rates_hz": {k: v / setup.duration_s for k, v in counts.items()},
-        "render_s": render_s, "pixel_s": pixel_s, "event_s": event_s, "render_noise": setup.render_quality,
-        "pixel_steps_per_s": pixel_steps / max(pixel_s, 1e-12),
-        "total_s": time.perf_counter() - start, "frames": len(frame_t),
-    }
+    return RunSummary(
+        out=str(out), width=w, height=h, steps=n_steps, duration_s=setup.duration_s, frames=len(frame_t),
+        counts=counts, rates_hz={k: v / setup.duration_s for k, v in counts.items()},
+        render_s=render_s, pixel_s=pixel_s, event_s=event_s, render_noise=setup.render_quality,
+        pixel_steps_per_s=pixel_steps / max(pixel_s, 1e-12), total_s=time.perf_counter() - start,
+    )
 
 
 def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):

@@ -1,8 +1,12 @@
-"""Statistics of an emulation file, read back in frame-sized windows (bounded memory)."""
+"""Results of an emulation: the run's summary (:class:`RunSummary`, what :func:`gevsim.emulation.run`
+returns) and per-stream statistics read back from its file in frame-sized windows, bounded memory
+(:class:`StreamStats`, :func:`summarize`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
+from typing import Any
 
 import numpy as np
 
@@ -13,8 +17,76 @@ from gevsim.io import EventReader
 BATCH_FRAMES = 64
 WINDOW_US = 100_000  # events counted 0.1 s at a time
 
+__all__ = ["RunSummary", "StreamStats", "summarize"]
 
-def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT) -> dict:
+
+class _Fields:
+    """Read-only ``result["field"]`` on a frozen result dataclass, for code written against the
+    dicts these results used to be; :meth:`as_dict` gives a JSON-ready copy."""
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in {f.name for f in dataclasses.fields(self)}:  # type: ignore[arg-type]
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)  # type: ignore[call-overload]
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSummary(_Fields):
+    """What one emulation run wrote and how long it took (:func:`gevsim.emulation.run`).
+
+    Attributes
+    ----------
+    out : the HDF5 file written.
+    width, height : sensor size in pixels.
+    steps : pixel-model time steps.
+    duration_s : emulated time.
+    frames : ground-truth frames written.
+    counts : events per stream (HDF5 group name).
+    rates_hz : events per second per stream.
+    render_s, pixel_s, total_s : seconds spent rendering (or loading) the basis, in the pixel model, in all.
+    event_s : seconds spent in each emulator, by its name.
+    render_noise : achieved render noise (:func:`gevsim.render.basis.summarize_quality`).
+    pixel_steps_per_s : pixel-model throughput.
+    """
+
+    out: str
+    width: int
+    height: int
+    steps: int
+    duration_s: float
+    frames: int
+    counts: dict[str, int]
+    rates_hz: dict[str, float]
+    render_s: float
+    pixel_s: float
+    event_s: dict[str, float]
+    render_noise: dict[str, Any]
+    pixel_steps_per_s: float
+    total_s: float
+
+
+@dataclasses.dataclass(frozen=True)
+class StreamStats(_Fields):
+    """Statistics of one event stream of an emulation file (:func:`summarize`).
+
+    Attributes
+    ----------
+    count : events in the stream.
+    rates_hz : events per second: ``total``, per polarity (``"+1"``, ``"-1"``) or axis (``"x"``,
+        ``"y"``), and ``per_pixel_hz``.
+    event_probability : mean probability of an event per ground-truth frame interval, as Lehtonen
+        et al. count it (NaN without frames).
+    """
+
+    count: int
+    rates_hz: dict[str, float]
+    event_probability: float
+
+
+def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT) -> dict[str, StreamStats]:
     """Per stream: event count, rates (total, per polarity/axis, per pixel) and the mean
     event probability per ground-truth frame interval as Lehtonen et al. count it."""
     out = {}
@@ -39,6 +111,6 @@ def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT)
             rates = {k: v / duration for k, v in totals.items()}
             rates["per_pixel_hz"] = rates["total"] / (w * h)
             p = np.concatenate(probabilities) if probabilities else np.zeros(0)
-            out[stream] = {"count": count, "rates_hz": rates,
-                           "event_probability": float(p.mean()) if p.size else float("nan")}
+            out[stream] = StreamStats(count=count, rates_hz=rates,
+                                      event_probability=float(p.mean()) if p.size else float("nan"))
     return out

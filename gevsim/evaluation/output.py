@@ -71,9 +71,9 @@ def write_reconstructions(out: str | Path, source: str | Path, results: list, gt
         st = streams[r.stream]
         summary["bandwidth"][name] = {
             "stream": r.stream,
-            "events_per_s": st["rates_hz"]["total"],
-            "event_probability": st["event_probability"],
-            "bits_per_s": float(bits_per_second(st["rates_hz"]["total"], bits_per_event=bits_per_event)),
+            "events_per_s": st.rates_hz["total"],
+            "event_probability": st.event_probability,
+            "bits_per_s": float(bits_per_second(st.rates_hz["total"], bits_per_event=bits_per_event)),
         }
     with atomic_dir(out, marker=MANIFEST) as stage:
         for name, frames in recs01.items():

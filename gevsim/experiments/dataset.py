@@ -260,12 +260,12 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     if config.evreal:
         _export_evreal(shard, evreal, params)
     seconds = time.perf_counter() - start
-    record = {"index": index, "parameters": params, "config_toml": emulation.to_toml(), "counts": summary["counts"],
-              "frames": summary["frames"], "width": summary["width"], "height": summary["height"],
+    record = {"index": index, "parameters": params, "config_toml": emulation.to_toml(), "counts": summary.counts,
+              "frames": summary.frames, "width": summary.width, "height": summary.height,
               "shard": str(shard.relative_to(Path(out_dir))), "seconds": seconds, "gevsim_version": __version__,
               "evreal": str(evreal.relative_to(Path(out_dir))) if config.evreal else None}
     atomic_write_text(marker, json.dumps(record, indent=1))  # last: the done-marker
-    return {"index": index, "status": "done", "counts": summary["counts"], "seconds": seconds}
+    return {"index": index, "status": "done", "counts": summary.counts, "seconds": seconds}
 
 
 def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.Executor | None = None,

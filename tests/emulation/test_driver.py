@@ -1,12 +1,13 @@
 """The emulation driver end to end on tiny scenes: outputs, chunking, seeds, counterfactuals."""
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gevsim.cli import main
-from gevsim.emulation import load_config, run
+from gevsim.emulation import RunSummary, StreamStats, load_config, run
 from gevsim.errors import ConfigError
 from gevsim.io import EventReader
 
@@ -35,8 +36,14 @@ def test_outputs_and_summary(tmp_path):
     summary = run(cfg, tmp_path / "out.h5", cache_dir=tmp_path / "cache")
     events, reader = read_all(tmp_path / "out.h5")
     assert set(events) == set(STREAMS)
-    assert {k: len(v) for k, v in events.items()} == summary["counts"]
-    assert summary["steps"] == 200 and (summary["width"], summary["height"]) == (32, 24)
+    assert isinstance(summary, RunSummary) and summary.out == str(tmp_path / "out.h5")
+    assert {k: len(v) for k, v in events.items()} == summary.counts
+    assert summary.steps == 200 and (summary.width, summary.height) == (32, 24) and summary.frames == 5
+    assert summary["counts"] == summary.counts and summary.as_dict()["steps"] == 200  # read-only dict access
+    with pytest.raises(KeyError):
+        summary["nope"]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        summary.steps = 1
     with EventReader(tmp_path / "out.h5") as r:
         assert "log_photocurrent" in r.frame_names and "aps" in r.frame_names
         images, t_us = r.frames("log_photocurrent")
@@ -73,7 +80,7 @@ def test_seed_determinism(tmp_path):
 def test_static_scene_without_flicker_and_noise_gives_no_events(tmp_path):
     summary = run(load_config(config(tmp_path)), tmp_path / "o.h5", cache_dir=tmp_path / "c", flicker=False,
                   noise=False)
-    assert sum(summary["counts"].values()) == 0
+    assert sum(summary.counts.values()) == 0
 
 
 def test_uniform_flicker_leaks_into_gradients_only_through_finite_bandwidth(tmp_path):
@@ -145,13 +152,12 @@ def test_summary_reads_back_in_windows_the_same_statistics(tmp_path, monkeypatch
         for stream in STREAMS:
             ev = r.read(stream)
             p = event_probability(ev, frame_t, width=32, height=24)
-            assert stats[stream]["count"] == len(ev)
-            assert stats[stream]["event_probability"] == pytest.approx(p.mean())
+            assert isinstance(stats[stream], StreamStats) and stats[stream].count == len(ev)
+            assert stats[stream].event_probability == pytest.approx(p.mean())
+            assert stats[stream]["count"] == stats[stream].count  # read-only dict access
 
 
 def test_light_overrides_need_no_rerender_and_act_linearly(tmp_path):
-    import dataclasses
-
     base = load_config(config(tmp_path, sensor="ideal"))
     run(base, tmp_path / "a.h5", cache_dir=tmp_path / "c")
     brighter = dataclasses.replace(base, light_scale=2.0, text="")
@@ -170,8 +176,6 @@ def test_light_overrides_need_no_rerender_and_act_linearly(tmp_path):
 
 
 def test_programmatic_config_round_trips_through_toml(tmp_path):
-    import dataclasses
-
     cfg = dataclasses.replace(load_config(config(tmp_path)), light_scale=0.5, group_scale={"lamp": 0.25},
                               group_waveform={"lamp": {"type": "pwm", "frequency_hz": 300.0, "duty": 0.5}})
     path = tmp_path / "round.toml"
@@ -229,13 +233,12 @@ def test_summary_rates_in_windows_equal_whole_stream_rates(tmp_path, monkeypatch
     with EventReader(tmp_path / "o.h5") as r:
         for stream in STREAMS:
             whole = event_rates(r.read(stream), r.t_end_us / 1e6, width=32, height=24)
-            assert stats[stream]["rates_hz"] == pytest.approx(whole)
+            assert stats[stream].rates_hz == pytest.approx(whole)
 
 
 def test_render_noise_floor_is_zero_without_render_noise_and_positive_with_it(tmp_path):
     """The floor run alternates C +- D/sqrt(2); with D = 0 it is the flicker-free scene (same events),
     with the render's own error sample it adds events; HDF5 attributes record the achieved noise."""
-    import dataclasses
     import json
 
     from gevsim.emulation import prepare
