@@ -126,7 +126,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" \
             else setup
         info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
-        counts[name] = info["counts"]
+        counts[name] = dict(info.counts)
         if name == "run":
             stats = summarize(folder / "run.h5")
             summary = info
@@ -134,9 +134,9 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
             folded[name] = {e: _fold(folder / f"{name}.h5", EMULATORS[e].stream, periods, (h, w))
                             for e in study.base["emulators"]}
     record = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
-              "width": w, "height": h, "duration_s": summary["duration_s"], "steps": summary["steps"],
+              "width": w, "height": h, "duration_s": summary.duration_s, "steps": summary.steps,
               "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts,
-              "event_probability": {e: stats[EMULATORS[e].stream]["event_probability"]
+              "event_probability": {e: stats[EMULATORS[e].stream].event_probability
                                     for e in study.base["emulators"]},
               "render": _render_quality(setup.render_quality), "metrics": {}}
     for method in study.base["methods"]:
@@ -149,7 +149,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         from gevsim.io import EventReader
 
         with EventReader(folder / "run.h5") as r:
-            f, amp = event_spectrum(r.read("events")["t"] * 1e-6, summary["duration_s"])
+            f, amp = event_spectrum(r.read("events")["t"] * 1e-6, summary.duration_s)
         record["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
     mean_basis = setup.current_basis.mean(axis=0)  # (K, H, W), A per unit waveform
     data = {"mean_current_a": mean_basis.sum(axis=0),
