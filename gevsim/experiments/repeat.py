@@ -105,10 +105,14 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     from gevsim.emulation.summary import summarize
     from gevsim.evaluation import reconstruct_file
 
-    if threads is not None:
+    if threads is not None:  # in an executor's worker
+        import logging
+
         import numba
 
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        # The parent rendered (or loaded) every basis before fanning out and logged its quality warnings once.
+        logging.getLogger("gevsim.render").setLevel(logging.ERROR)
     start = time.perf_counter()
     rid = run_id(study, params)
     marker, arrays, folder = repeat_paths(out, rid, repeat)

@@ -337,8 +337,8 @@ def comparison_table(rows: list[dict], study: Study) -> str:
         lines.append(f"\n{_label(row, study)} ({row['repeats']} repeats; DVS/gradient {ratio_text(row)})")
         if "render_se_ln" in row:
             lines.append(f"  render: {_render_spp(row)} spp, ln error {_render_error(row)}")
-        lines.append(f"  {'emulator':12s} {'events/s':>10s}  {'flicker ev/px/s [95 %]':40s} "
-                     f"{'noise ev/px/s [95 %]':40s} {'best recon':>12s} {'SSIM':>6s}")
+        lines.append(f"  {'emulator':12s} {'events/s':>10s}  {'flicker ev/px/s [95 %]':52s} "
+                     f"{'noise ev/px/s [95 %]':52s} {'best recon':>12s} {'SSIM':>6s}")
         for e in EMULATORS:
             if f"{e}_events_per_s" not in row:
                 continue
@@ -346,6 +346,6 @@ def comparison_table(rows: list[dict], study: Study) -> str:
                       if entry.emulator == e and f"{m}_ssim" in row and np.isfinite(row[f"{m}_ssim"])]
             best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
             ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
-            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:10.4g}  {fmt(row, f'{e}_flicker_per_pixel_s'):40s} "
-                         f"{fmt(row, f'{e}_noise_per_pixel_s'):40s} {best or '-':>12s} {ssim}")
+            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:10.4g}  {fmt(row, f'{e}_flicker_per_pixel_s'):52s} "
+                         f"{fmt(row, f'{e}_noise_per_pixel_s'):52s} {best or '-':>12s} {ssim}")
     return "\n".join(lines)
