@@ -23,7 +23,7 @@ $(PY):
 
 $(STAMP): pyproject.toml | $(PY)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[plot,test,dask,denoise]'
+	$(PY) -m pip install -q -e '.[plot,test,dask,denoise,aedat4]'
 	touch $@
 
 llvm:

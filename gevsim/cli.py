@@ -1,4 +1,4 @@
-"""Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``, ``study``, ``dataset``.
+"""Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``, ``export``, ``study``, ``dataset``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
 library. Bad input (:class:`~gevsim.errors.ConfigError`) and a missing optional
@@ -218,6 +218,15 @@ def cmd_study(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    from gevsim.io.aedat4 import export_aedat4
+
+    streams = [s for part in args.stream or [] for s in part.split(",") if s] or None
+    counts = export_aedat4(args.file, args.out, streams=streams)
+    print(f"gevsim: wrote {args.out}: " + ", ".join(f"{k} {v}" for k, v in counts.items()), file=sys.stderr)
+    return 0
+
+
 def _quiet_dask(args: argparse.Namespace) -> None:
     """distributed sets its loggers to INFO on import: back to WARNING unless --verbose."""
     if args.executor != "dask" or args.verbose:
@@ -331,6 +340,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
     c.add_argument("--bits-per-event", type=_non_negative, default=32.0, help="for the bandwidth column (default 32)")
     c.set_defaults(func=cmd_reconstruct)
+
+    x = sub.add_parser("export", help="write an emulation file's events in another format (AEDAT4 for DV tools)")
+    x.add_argument("file", help="an emulation file (.h5)")
+    x.add_argument("--format", choices=("aedat4",), required=True,
+                   help="aedat4: iniVation DV (gradient axes as <stream>_x/_y event streams)")
+    x.add_argument("--out", required=True, help="output file (written atomically)")
+    x.add_argument("--stream", action="append", metavar="NAME", help="streams to export (default: all)")
+    x.set_defaults(func=cmd_export)
 
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
     d.add_argument("config", help="dataset config (see gevsim/experiments/dataset.py)")

@@ -1,0 +1,115 @@
+"""AEDAT4 export (the file format of iniVation's DV tools, which v2e also writes) through
+iniVation's maintained ``dv-processing`` library (extra ``aedat4``).
+
+AEDAT4 event streams carry polarity events (timestamp in microseconds, x, y, a boolean
+polarity). gevsim's streams map onto them as:
+
+- the brightness stream ``events`` (DVS, center-surround): one AEDAT4 event stream of the
+  same name, polarity = ON;
+- a gradient stream ``<name>`` (ternary gradient codes, one event per change of a pixel's
+  x or y code by one step): two AEDAT4 event streams, ``<name>_x`` and ``<name>_y``, with
+  polarity = the step is upward (``p = +1``).
+
+Timestamps stay in microseconds from the start of the emulation. The output file is written
+next to its final name and renamed into place when complete.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from gevsim.errors import ConfigError, MissingExtraError
+from gevsim.io.atomic import atomic_path
+from gevsim.io.hdf5 import EventReader
+
+__all__ = ["aedat4_streams", "export_aedat4", "read_aedat4"]
+
+WINDOW_US = 50_000  # events are read and written 50 ms at a time
+
+
+def _dv():
+    try:
+        import dv_processing as dv
+    except ImportError:
+        raise MissingExtraError("AEDAT4 export needs dv-processing: pip install 'gevsim[aedat4]'") from None
+    return dv
+
+
+def aedat4_streams(reader: EventReader) -> dict[str, tuple[str, int | None]]:
+    """AEDAT4 stream name -> (gevsim stream, gradient axis or None) for the streams of a file."""
+    out: dict[str, tuple[str, int | None]] = {}
+    for stream in reader.streams:
+        if "axis" in (reader.dtype(stream).names or ()):
+            out[f"{stream}_x"] = (stream, 0)
+            out[f"{stream}_y"] = (stream, 1)
+        else:
+            out[stream] = (stream, None)
+    return out
+
+
+def _store(dv, events: np.ndarray):
+    store = dv.EventStore()
+    push = store.push_back
+    for t, x, y, p in zip(events["t"].tolist(), events["x"].tolist(), events["y"].tolist(),
+                          (events["p"] > 0).tolist()):
+        push(t, x, y, p)
+    return store
+
+
+def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: list[str] | None = None) -> dict:
+    """Write the event streams of an emulation file ``path`` as an AEDAT4 file ``out``.
+
+    ``streams`` names gevsim streams to export (default: all). Returns the AEDAT4 stream
+    names with their event counts.
+    """
+    dv = _dv()
+    out = Path(out)
+    with EventReader(path) as r:
+        mapping = aedat4_streams(r)
+        if streams is not None:
+            unknown = sorted(set(streams) - set(r.streams))
+            if unknown:
+                raise ConfigError(f"no stream {', '.join(map(repr, unknown))} in the file; it has "
+                                  f"{', '.join(r.streams) or 'none'}", source=str(path), key="stream")
+            mapping = {k: v for k, v in mapping.items() if v[0] in streams}
+        if not mapping:
+            raise ConfigError("the file holds no event stream to export", source=str(path))
+        config = dv.io.MonoCameraWriter.Config("gevsim")
+        for name in mapping:
+            config.addEventStream((r.width, r.height), name)
+        counts = dict.fromkeys(mapping, 0)
+        with atomic_path(out, suffix=".aedat4") as tmp:
+            writer = dv.io.MonoCameraWriter(str(tmp), config)
+            try:
+                for start in range(0, int(r.t_end_us) + 1, WINDOW_US):
+                    for stream in dict.fromkeys(s for s, _ in mapping.values()):
+                        ev = r.read(stream, start, start + WINDOW_US)
+                        for name, (s, axis) in mapping.items():
+                            if s != stream:
+                                continue
+                            sel = ev if axis is None else ev[ev["axis"] == axis]
+                            if len(sel):
+                                writer.writeEvents(_store(dv, sel), name)
+                                counts[name] += len(sel)
+            finally:
+                del writer  # closes the file: its last packets and index are written here
+    return counts
+
+
+def read_aedat4(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """All events of every event stream of an AEDAT4 file: name -> structured array (timestamp, x, y,
+    polarity), for round trips and tests."""
+    dv = _dv()
+    recording = dv.io.MonoCameraRecording(str(path))
+    out = {}
+    for name in recording.getStreamNames():
+        if not recording.isStreamOfEventType(name):
+            continue
+        parts = []
+        while (batch := recording.getNextEventBatch(name)) is not None:
+            parts.append(batch.numpy())
+        out[name] = np.concatenate(parts) if parts else np.zeros(0, dv.EventStore().numpy().dtype)
+    return out
