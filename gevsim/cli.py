@@ -1,4 +1,5 @@
-"""Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``, ``export``, ``study``, ``dataset``.
+"""Command line: ``gevsim info``, ``scenes``, ``render``, ``emulate``, ``reconstruct``, ``export``, ``study``,
+``dataset``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
 library. Bad input (:class:`~gevsim.errors.ConfigError`) and a missing optional
