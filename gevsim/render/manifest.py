@@ -164,10 +164,13 @@ def load(scene: str | Path) -> SceneManifest:
     sc = r.table(raw, "scene")
     check_keys(sc, SCENE_KEYS, source=r.source, where="scene")
     if "builder" not in sc:
-        r.fail("scene.builder", "missing: name the Python file with the scene's build(options) function")
+        r.fail("scene.builder", "missing: name the Python file with the scene's build(options) function, or a "
+                                "Mitsuba XML scene file")
     builder = (path.parent / sc["builder"]).resolve()
     if not builder.is_file():
         r.fail("scene.builder", f"no such file {builder}")
+    if builder.suffix.lower() not in (".py", ".xml"):
+        r.fail("scene.builder", f"expected a Python builder (.py) or a Mitsuba XML scene (.xml), got {builder.name}")
     options = sc.get("options", {})
     if not isinstance(options, dict):
         r.fail("scene.options", f"expected a table, got {options!r}")

@@ -21,6 +21,7 @@ from gevsim.errors import ConfigError, suggest
 from gevsim.render import backend, integrator
 from gevsim.render.manifest import Emission, LightGroup, SceneManifest
 from gevsim.render.trajectory import Pose, pose_at, pose_times
+from gevsim.render.xml_scene import is_xml, load_xml_objects, object_emits, xml_inputs
 
 log = logging.getLogger(__name__)
 
@@ -65,9 +66,15 @@ def load_builder(path: Path):
 
 
 def content_hash(manifest: SceneManifest) -> str:
-    """Hash of everything that defines the scene's geometry, materials and emission."""
+    """Hash of everything that defines the scene's geometry, materials and emission (for an XML
+    scene: the XML and every file it reads, :func:`~gevsim.render.xml_scene.xml_inputs`)."""
     h = hashlib.sha256()
-    h.update(manifest.builder.read_bytes())
+    if is_xml(manifest.builder):
+        for path in xml_inputs(manifest.builder):
+            h.update(path.name.encode())
+            h.update(path.read_bytes() if path.is_file() else b"<missing>")
+    else:
+        h.update(manifest.builder.read_bytes())
     h.update(repr(sorted(manifest.options.items())).encode())
     for g in manifest.light_groups:
         h.update(repr((g.name, g.emitters, g.emission)).encode())
@@ -130,7 +137,11 @@ class MitsubaScene:
 
         mi.set_variant(self.variant.variant)
         self._mi = mi
-        shapes = load_builder(manifest.builder)(dict(manifest.options))
+        self._object_emission: dict[str, tuple[float, float, float]] = {}
+        if is_xml(manifest.builder):
+            shapes = load_xml_objects(mi, manifest.builder, dict(manifest.options))
+        else:
+            shapes = load_builder(manifest.builder)(dict(manifest.options))
         if not isinstance(shapes, dict):
             raise ConfigError("build(options) must return a dict of Mitsuba objects", source=str(manifest.builder))
         self.scene_dict = self._assemble(shapes)
@@ -140,6 +151,7 @@ class MitsubaScene:
             raise ConfigError(f"Mitsuba could not load the scene: {exc}", source=str(manifest.builder)) from exc
         self.params = mi.traverse(self.scene)
         self._group_keys = self._find_group_keys()
+        self._set_object_emission()
         self._group_emitters = None
         self._original = {k: type(self.params[k])(self.params[k]) for keys in self._group_keys.values() for k in keys}
         self._rest = {}
@@ -176,6 +188,13 @@ class MitsubaScene:
                         key=f"light_groups.{group.name}.emitters",
                     )
                 entry = shapes[eid]
+                if not isinstance(entry, dict):  # an object of an XML scene: its radiance is set once loaded
+                    if group.emission.illuminance_lux is not None:
+                        raise ConfigError(f"light group {group.name!r}: illuminance_lux needs a Python builder; give an "
+                                          "XML scene's emitters luminance_cd_m2 or radiance_w_m2_sr", source=src,
+                                          key=f"light_groups.{group.name}")
+                    self._object_emission[eid] = emitter_rgb(group.emission)
+                    continue
                 area = emitting_area_m2(entry, eid, src) if group.emission.illuminance_lux is not None else None
                 rgb = {"type": "rgb", "value": list(emitter_rgb(group.emission, area_m2=area))}
                 if isinstance(entry.get("emitter"), dict):
@@ -191,7 +210,8 @@ class MitsubaScene:
                     )
         grouped = {e for g in m.light_groups for e in g.emitters}
         for sid, entry in shapes.items():
-            emits = isinstance(entry, dict) and ("emitter" in entry or entry.get("type") in EMITTER_TYPES)
+            emits = (isinstance(entry, dict) and ("emitter" in entry or entry.get("type") in EMITTER_TYPES)
+                     or not isinstance(entry, dict) and object_emits(entry))
             if emits and sid not in grouped:
                 raise ConfigError(
                     f"emitter {sid!r} belongs to no light group; add it to one so its waveform is known",
@@ -226,6 +246,26 @@ class MitsubaScene:
             },
             **shapes,
         }
+
+    def _set_object_emission(self) -> None:
+        """Give the emitters of an XML scene their light group's radiance (a Python builder's get it in
+        :meth:`_assemble`)."""
+        if not self._object_emission:
+            return
+        for keys in self._group_keys.values():
+            for key in keys:
+                eid = key.split(".", 1)[0]
+                if eid not in self._object_emission:
+                    continue
+                rgb = self._object_emission[eid]
+                if key.endswith(".d65.values"):
+                    raise ConfigError(f"emitter {eid!r}: spectral radiance in the XML scene; give it an <rgb> radiance",
+                                      source=str(self.manifest.builder))
+                value = self.params[key]
+                channels = len(value) if hasattr(value, "__len__") else 1
+                y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+                self.params[key] = type(value)(rgb if channels == 3 else y)
+        self.params.update()
 
     def _find_group_keys(self) -> dict[str, list[str]]:
         keys = {}
