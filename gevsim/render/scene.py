@@ -190,9 +190,9 @@ class MitsubaScene:
                 entry = shapes[eid]
                 if not isinstance(entry, dict):  # an object of an XML scene: its radiance is set once loaded
                     if group.emission.illuminance_lux is not None:
-                        raise ConfigError(f"light group {group.name!r}: illuminance_lux needs a Python builder; give an "
-                                          "XML scene's emitters luminance_cd_m2 or radiance_w_m2_sr", source=src,
-                                          key=f"light_groups.{group.name}")
+                        raise ConfigError(f"light group {group.name!r}: illuminance_lux needs a Python builder; "
+                                          "give an XML scene's emitters luminance_cd_m2 or radiance_w_m2_sr",
+                                          source=src, key=f"light_groups.{group.name}")
                     self._object_emission[eid] = emitter_rgb(group.emission)
                     continue
                 area = emitting_area_m2(entry, eid, src) if group.emission.illuminance_lux is not None else None

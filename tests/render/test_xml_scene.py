@@ -18,7 +18,9 @@ SCENE_XML = """<scene version="3.0.0">
         <emitter type="area"><rgb name="radiance" value="1.0"/></emitter>
     </shape>
     <shape type="rectangle" id="floor">
-        <transform name="to_world"><scale x="5" y="5" z="1"/><rotate x="1" angle="-90"/><translate x="0" y="-1" z="0"/></transform>
+        <transform name="to_world">
+            <scale x="5" y="5" z="1"/><rotate x="1" angle="-90"/><translate x="0" y="-1" z="0"/>
+        </transform>
         <bsdf type="diffuse">
             <texture type="bitmap" name="reflectance"><string name="filename" value="textures/floor.png"/></texture>
         </bsdf>
