@@ -37,8 +37,9 @@ def _non_negative(text: str) -> float:
 
 
 def _progress(desc: str, enabled: bool, unit: str = "pose"):
-    """A ``progress(done, total)`` callback drawing a tqdm bar (or nothing)."""
-    if not enabled:
+    """A ``progress(done, total)`` callback drawing a tqdm bar (or nothing: with ``-q``, or when
+    stderr is not a terminal, where a bar's redraws would fill a log file)."""
+    if not enabled or not sys.stderr.isatty():
         return None, lambda: None
     from tqdm import tqdm
 
@@ -57,6 +58,21 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     for key, value in describe().items():
         print(f"{key:>9}: {value}")
+    return 0
+
+
+def cmd_presets(args: argparse.Namespace) -> int:
+    from gevsim.pixel.presets import load_preset, preset_names
+
+    print(f"{'preset':14s} {'size':>9s} {'pitch um':>8s} {'fill':>5s} {'ON/OFF ln':>11s} {'mismatch':>8s} "
+          f"{'cutoff Hz':>9s} {'dark A':>9s} {'APS':>4s}  description")
+    for name in preset_names():
+        p = load_preset(name)
+        e = p.events
+        print(f"{name:14s} {f'{p.width}x{p.height}':>9s} {p.pixel_pitch_m * 1e6:8.2f} {p.fill_factor:5.2f} "
+              f"{e.threshold_on_ln:5.3g}/{e.threshold_off_ln:<5.3g} {e.threshold_mismatch_ln:8.3g} "
+              f"{p.photoreceptor.cutoff_hz:9.4g} {p.noise.dark_current_a:9.2g} {'yes' if p.aps else 'no':>4s}  "
+              f"{p.description}")
     return 0
 
 
@@ -113,6 +129,44 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _emulator_names(args: argparse.Namespace, choices=None) -> tuple[str, ...] | None:
+    """``--emulators a,b`` as registry names (None when not given); unknown names are a ConfigError."""
+    from gevsim.emulation.emulators import EMULATORS, check_emulator
+
+    if args.emulators is None:
+        return None
+    names = tuple(dict.fromkeys(n.strip() for n in args.emulators.split(",") if n.strip()))
+    if not names:
+        raise ConfigError("name at least one emulator", key="--emulators")
+    for name in names:
+        try:
+            check_emulator(name, tuple(choices or EMULATORS))
+        except ValueError as exc:
+            raise ConfigError(str(exc), key="--emulators") from None
+    return names
+
+
+def _render_overrides(args: argparse.Namespace) -> dict:
+    return {k: v for k, v in (("width", args.width), ("height", args.height)) if v is not None}
+
+
+def _override_emulation(config, args: argparse.Namespace):
+    """An emulation config with the command line's --width/--height/--duration/--emulators."""
+    import dataclasses
+
+    changes: dict = {}
+    if _render_overrides(args):
+        changes["render"] = {**config.render, **_render_overrides(args)}
+    if args.duration is not None:
+        changes["duration_s"] = args.duration
+    if (names := _emulator_names(args)) is not None:
+        changes["emulators"] = names
+    if not changes:
+        return config
+    config = dataclasses.replace(config, **changes)
+    return dataclasses.replace(config, text=config.to_toml())
+
+
 def cmd_emulate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -124,7 +178,7 @@ def cmd_emulate(args: argparse.Namespace) -> int:
         return _emulate_frames(args)
     from gevsim.emulation import load_config, run
 
-    config = load_config(args.config)
+    config = _override_emulation(load_config(args.config), args)
     update, close = _progress("emulate", not args.quiet, unit="chunk")
     render_update, render_close = _progress("render", not args.quiet)
     try:
@@ -162,7 +216,14 @@ def _emulate_frames(args: argparse.Namespace) -> int:
     else:
         frames, t_s = loaders.load_frame_folder(args.frames, fps=args.fps)
         source = args.frames
-    summary = run_frames(frames, t_s, args.out, seed=args.seed, source=source)
+    from gevsim.emulation.emulators import FRAME_EMULATORS
+
+    names = _emulator_names(args, FRAME_EMULATORS)
+    if args.seed is not None and args.threshold_mismatch is None:
+        raise ConfigError("--seed draws the DVS threshold mismatch: give --threshold-mismatch LN as well",
+                          key="--seed")
+    summary = run_frames(frames, t_s, args.out, seed=args.seed or 0, source=source,
+                         emulators=names or FRAME_EMULATORS, threshold_mismatch_ln=args.threshold_mismatch or 0.0)
     print(f"{'stream':22s} {'events':>10s} {'events/s':>12s}")
     for name, count in summary["counts"].items():
         print(f"{name:22s} {count:10d} {count / summary['duration_s']:12.4g}")
@@ -175,11 +236,19 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     from gevsim.evaluation import reconstruct_file, write_reconstructions
 
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
+    if not methods:
+        raise ConfigError(f"no method named in {','.join(args.method)!r}", key="--method")
     results, gt, tone = [], None, None
-    for method in methods:
-        rec, gt, tone = reconstruct_file(args.file, method, mean=args.mean, c=args.c, contrast_ln=args.contrast,
-                                         reference=args.reference)
-        results.append(rec)
+    update, close = _progress("reconstruct", not args.quiet, unit="method")
+    try:
+        for k, method in enumerate(methods):
+            rec, gt, tone = reconstruct_file(args.file, method, mean=args.mean, c=args.c, contrast_ln=args.contrast,
+                                             reference=args.reference)
+            results.append(rec)
+            if update:
+                update(k + 1, len(methods))
+    finally:
+        close()
     settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast,
                 "reference": args.reference}
     summary = write_reconstructions(args.out, args.file, results, gt, tone, settings=settings,
@@ -202,8 +271,21 @@ def cmd_study(args: argparse.Namespace) -> int:
     from gevsim.experiments.study import check_study_scenes, load_study, run_study
 
     study = load_study(args.config)
+    base = dict(study.base)
     if args.repeats is not None:
-        study = dataclasses.replace(study, base={**study.base, "repeats": args.repeats})
+        base["repeats"] = args.repeats
+    if _render_overrides(args):
+        base["render"] = {**base["render"], **_render_overrides(args)}
+    if args.duration is not None:
+        base["duration_s"] = args.duration
+    if (names := _emulator_names(args)) is not None:
+        from gevsim.evaluation.methods import METHODS
+
+        missing = sorted({METHODS[m].emulator for m in base["methods"]} - set(names))
+        if missing:
+            raise ConfigError(f"the study's methods need the emulators {', '.join(missing)}", key="--emulators")
+        base["emulators"] = list(names)
+    study = dataclasses.replace(study, base=base)
     check_study_scenes(study)
     _quiet_dask(args)
     with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
@@ -241,10 +323,20 @@ def _quiet_dask(args: argparse.Namespace) -> None:
 
 
 def cmd_dataset(args: argparse.Namespace) -> int:
+    import dataclasses
+
     from gevsim.experiments.dataset import generate, load_dataset_config
     from gevsim.experiments.executors import make_executor
 
     config = load_dataset_config(args.config)
+    changes: dict = {}
+    if _render_overrides(args):
+        changes["render"] = {**config.render, **_render_overrides(args)}
+    if args.duration is not None:
+        changes["time"] = dataclasses.replace(config.time, duration_s=args.duration)
+    if (names := _emulator_names(args)) is not None:
+        changes["emulators"] = names
+    config = dataclasses.replace(config, **changes)
     _quiet_dask(args)
     with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
         update, close = _progress("dataset", not args.quiet, unit="seq")
@@ -268,6 +360,25 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
+def _run_overrides(parser: argparse.ArgumentParser) -> None:
+    """--width/--height/--duration/--emulators: override the config's values for this run."""
+    parser.add_argument("--width", type=_positive_int, help="render width in pixels (overrides the config)")
+    parser.add_argument("--height", type=_positive_int, help="render height in pixels (overrides the config)")
+    parser.add_argument("--duration", type=_positive, metavar="S", help="duration in seconds (overrides the config)")
+    parser.add_argument("--emulators", metavar="LIST", help="comma-separated emulators (overrides the config), "
+                                                            "e.g. dvs,gradient")
+
+
 def _executor_options(parser: argparse.ArgumentParser) -> None:
     from gevsim.experiments.executors import EXECUTORS
 
@@ -283,11 +394,22 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(prog="gevsim", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"gevsim {gevsim.__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log gevsim's debug messages")
     sub = parser.add_subparsers(dest="command", required=True)
+    # -v after the subcommand as well (``gevsim emulate cfg.toml -v``); not given there: the top level's value.
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                        help="log gevsim's debug messages")
+    _add_parser = sub.add_parser
+
+    def add_parser(*a, **kw):
+        return _add_parser(*a, parents=[common], **kw)
+
+    sub.add_parser = add_parser  # type: ignore[method-assign]
 
     sub.add_parser("info", help="versions, Mitsuba variant and why, libLLVM, threads").set_defaults(func=cmd_info)
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(func=cmd_scenes)
+    sub.add_parser("presets", help="list the sensor presets and their main parameters").set_defaults(func=cmd_presets)
 
     r = sub.add_parser("render", help="render a scene's light-group basis images (and an irradiance sequence)")
     r.add_argument("scene", help="a built-in scene name (see `gevsim scenes`) or a manifest .toml")
@@ -319,7 +441,10 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--evreal", metavar="DIR", help="frame mode: an EVREAL sequence folder")
     e.add_argument("--video", metavar="FILE", help="frame mode: a video file (needs imageio)")
     e.add_argument("--fps", type=_positive, help="frame rate when the frames carry no timestamps")
-    e.add_argument("--seed", type=int, default=0, help="frame mode: seed of the DVS threshold mismatch")
+    e.add_argument("--seed", type=_non_negative_int, help="frame mode: seed of the DVS threshold mismatch")
+    e.add_argument("--threshold-mismatch", type=_non_negative, metavar="LN", dest="threshold_mismatch",
+                   help="frame mode: sigma of the DVS threshold mismatch (ln units; default 0)")
+    _run_overrides(e)
     e.add_argument("--no-flicker", action="store_true", help="replace every lamp waveform by its mean")
     e.add_argument("--no-noise", action="store_true", help="ideal pixel: no noise, no mismatch, no leak")
     e.add_argument("--cache", metavar="DIR", help="basis image cache")
@@ -340,6 +465,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--reference", default="flicker",
                    help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
     c.add_argument("--bits-per-event", type=_non_negative, default=32.0, help="for the bandwidth column (default 32)")
+    c.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     c.set_defaults(func=cmd_reconstruct)
 
     x = sub.add_parser("export", help="write an emulation file's events in another format (AEDAT4 for DV tools)")
@@ -354,6 +480,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("config", help="dataset config (see gevsim/experiments/dataset.py)")
     d.add_argument("--out", required=True, help="output folder; finished sequences in it are kept")
     _executor_options(d)
+    _run_overrides(d)
     d.add_argument("--cache", metavar="DIR", help="basis image cache (shared by the workers)")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=cmd_dataset)
@@ -365,6 +492,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--repeats", type=_positive_int, metavar="R",
                    help="noise seeds per run (default: [study] repeats); more repeats reuse the finished ones")
     _executor_options(s)
+    _run_overrides(s)
     s.add_argument("--cache", metavar="DIR", help="basis image cache (default with workers: OUT/render-cache)")
     s.add_argument("--keep-files", action="store_true", help="keep every run's HDF5 files")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
@@ -374,8 +502,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if args.verbose:  # gevsim's own debug messages, not those of every library it imports
+        logging.getLogger("gevsim").setLevel(logging.DEBUG)
     try:
         return args.func(args)
     except BrokenPipeError:  # output piped into `head` and the like

@@ -12,6 +12,7 @@ to an emulation file (frames from files: :mod:`gevsim.io.frames`).
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Sequence
 
@@ -88,20 +89,29 @@ def emulate_frames(frames: np.ndarray, t_s: np.ndarray, *, emulators: Sequence[s
 
 
 def run_frames(frames: np.ndarray, t_s: np.ndarray, out: str | os.PathLike, *, seed: int = 0,
-               source: str | os.PathLike | None = None) -> dict:
-    """Frame mode into an emulation file: :func:`emulate_frames` with ``default_rng(seed)``, the
-    frames as ground truth (``/frames/intensity``) and what decoding starts from.
+               source: str | os.PathLike | None = None, emulators: Sequence[str] = FRAME_EMULATORS,
+               threshold_mismatch_ln: float = 0.0) -> dict:
+    """Frame mode into an emulation file: :func:`emulate_frames` of ``emulators`` with
+    ``default_rng(seed)`` (which draws the DVS threshold mismatch of sigma
+    ``threshold_mismatch_ln``), the frames as ground truth (``/frames/intensity``) and what
+    decoding starts from.
 
     Returns ``{"width", "height", "frames", "duration_s", "counts"}`` (events per stream).
     """
     try:  # users' frame files: bad ones are input errors, named by their source
         frames, t_s = _check_frames(frames, t_s)
-        _check_sizes(frames.shape[1:], FRAME_EMULATORS)
+        _check_sizes(frames.shape[1:], emulators)
     except (ValueError, TypeError) as exc:
         raise ConfigError(str(exc), source=None if source is None else str(source)) from None
-    streams = emulate_frames(frames, t_s, rng=np.random.default_rng(seed))
+    real(threshold_mismatch_ln, "threshold_mismatch_ln", low=0.0)
+    dvs = EventParams(threshold_on_ln=0.2, threshold_off_ln=0.2, threshold_mismatch_ln=threshold_mismatch_ln)
+    streams = emulate_frames(frames, t_s, emulators=emulators, dvs_params=dvs, rng=np.random.default_rng(seed))
     h, w = frames.shape[1:]
     config = f'# frame mode\nsource = "{source}"\nseed = {seed}\n'
+    if tuple(emulators) != tuple(FRAME_EMULATORS):  # defaults stay implicit: files of default runs are unchanged
+        config += f"emulators = {json.dumps(list(emulators))}\n"
+    if threshold_mismatch_ln:
+        config += f"threshold_mismatch_ln = {threshold_mismatch_ln!r}\n"
     with EventWriter(out, width=w, height=h, config_toml=config, seed=seed,
                      extra_attrs={"mode": "frames", "source": str(source)}) as wr:
         for k, t in enumerate(t_s):
