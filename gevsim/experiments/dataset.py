@@ -45,6 +45,7 @@ from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.experiments.executors import run_all
 from gevsim.io import EventReader, atomic_write_text, export_evreal
 from gevsim.reconstruct.tonemap import ToneMap
 from gevsim.render.quality import check_render_overrides
@@ -287,23 +288,8 @@ def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.
     todo = [i for i in indices if finished(config, out, i) is None]
     total, done = len(indices), len(indices) - len(todo)
     cache = None if cache_dir is None else str(cache_dir)
-    if executor is None:  # here, one after another
-        futures, outcomes = [], (run_sequence(config, str(out), i, cache_dir=cache) for i in todo)
-    else:
-        futures = [executor.submit(run_sequence, config, str(out), i, cache_dir=cache) for i in todo]
-        outcomes = (future.result() for future in cf.as_completed(futures))
-    results = []
-    try:
-        if progress:
-            progress(done, total)
-        for result in outcomes:
-            results.append(result)
-            done += 1
-            if progress:
-                progress(done, total)
-    finally:  # on the first failure: drop what has not started (finished sequences stay finished)
-        for future in futures:
-            future.cancel()
+    results = run_all(run_sequence, [((config, str(out), i), {"cache_dir": cache}) for i in todo], executor=executor,
+                      progress=progress, done=done, total=total)
     records = [r for r in (finished(config, out, i) for i in range(config.sequences)) if r is not None]
     counts: dict[str, int] = {}
     wanted = set(indices)

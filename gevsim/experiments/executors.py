@@ -16,7 +16,8 @@ import logging
 import multiprocessing
 import os
 from collections.abc import Callable, Iterator
-from concurrent.futures import Executor, ProcessPoolExecutor
+from typing import Any
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 
 from gevsim.errors import ConfigError, MissingExtraError, suggest
 
@@ -103,3 +104,33 @@ def make_executor(kind: str = "local", *, workers: int | None = None, scheduler:
         raise ConfigError(f"must be a positive integer, got {workers!r}", key="workers")
     with EXECUTORS[kind](workers, scheduler, processes) as executor:
         yield executor
+
+
+def run_all(fn: Callable[..., Any], calls: list[tuple[tuple, dict]], *, executor: Executor | None = None,
+            progress: Callable[[int, int], None] | None = None, done: int = 0,
+            total: int | None = None) -> list:
+    """``fn(*args, **kwargs)`` for each ``(args, kwargs)`` of ``calls``: here, one after another
+    (``executor`` None), or in the executor's workers. ``progress(done, total)`` is called at the
+    start and as each call completes (``done`` counts work finished before). On the first
+    failure, calls that have not started are cancelled and the error propagates. Returns the
+    results in completion order."""
+    total = done + len(calls) if total is None else total
+    if executor is None:
+        futures: list = []
+        outcomes: Iterator = (fn(*args, **kwargs) for args, kwargs in calls)
+    else:
+        futures = [executor.submit(fn, *args, **kwargs) for args, kwargs in calls]
+        outcomes = (future.result() for future in as_completed(futures))
+    results = []
+    try:
+        if progress:
+            progress(done, total)
+        for result in outcomes:
+            results.append(result)
+            done += 1
+            if progress:
+                progress(done, total)
+    finally:
+        for future in futures:
+            future.cancel()
+    return results

@@ -62,7 +62,7 @@ import json
 import math
 import os
 from collections.abc import Callable
-from concurrent.futures import Executor, as_completed
+from concurrent.futures import Executor
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +72,7 @@ from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
+from gevsim.experiments.executors import run_all
 from gevsim.io import atomic_path
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
@@ -283,28 +284,15 @@ def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathL
     jobs = run_jobs(study)
     todo = [(p, r) for p, r in jobs if rep.finished_repeat(out, run_id(study, p), r) is None]
     total, done = len(jobs), len(jobs) - len(todo)
-    if progress:
-        progress(done, total)
-    if executor is None:
-        futures = []
-        outcomes = (rep.execute_repeat(study, p, r, out, cache_dir=cache_dir, keep_files=keep_files)
-                    for p, r in todo)
-    else:
-        if cache_dir is None:
-            cache_dir = out / "render-cache"
+    kwargs: dict = {"keep_files": keep_files}
+    if executor is not None:
+        cache_dir = out / "render-cache" if cache_dir is None else cache_dir
         if todo:
             _prerender(study, todo, cache_dir)
-        futures = [executor.submit(rep.execute_repeat, study, p, r, str(out), cache_dir=str(cache_dir),
-                                   keep_files=keep_files, threads=1) for p, r in todo]
-        outcomes = (future.result() for future in as_completed(futures))
-    try:
-        for _ in outcomes:
-            done += 1
-            if progress:
-                progress(done, total)
-    finally:  # on the first failure: drop what has not started (finished repeats stay finished)
-        for future in futures:
-            future.cancel()
+        kwargs["threads"] = 1
+    calls = [((study, p, r, out if executor is None else str(out)),
+              {**kwargs, "cache_dir": None if cache_dir is None else str(cache_dir)}) for p, r in todo]
+    run_all(rep.execute_repeat, calls, executor=executor, progress=progress, done=done, total=total)
     return collect(study, out)
 
 
