@@ -179,6 +179,8 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
         rec, gt, tone = reconstruct_file(args.file, method, mean=args.mean, c=args.c, contrast_ln=args.contrast,
                                          reference=args.reference)
         results.append(rec)
+    if gt is None or tone is None:
+        raise ConfigError("name at least one reconstruction method", key="--method")
     settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast,
                 "reference": args.reference}
     summary = write_reconstructions(args.out, args.file, results, gt, tone, settings=settings,

@@ -15,6 +15,7 @@ import logging
 import os
 import re
 import warnings
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,7 +61,7 @@ def llvm_version(path: str | os.PathLike) -> int | None:
     return int(match.group(1)) if match else None
 
 
-def find_libllvm(dirs=LIBRARY_DIRS) -> str | None:
+def find_libllvm(dirs: Iterable[str | os.PathLike] = LIBRARY_DIRS) -> str | None:
     """Return the newest libLLVM with major version in [16, 22] found in ``dirs``."""
     candidates = []
     for directory in list(dirs) + [f"/usr/lib/llvm-{v}/lib" for v in range(LLVM_MIN, LLVM_MAX + 1)]:
@@ -84,7 +85,7 @@ def find_libllvm(dirs=LIBRARY_DIRS) -> str | None:
 def choose_variant(
     flavour: str = "rgb",
     *,
-    env: dict | None = None,
+    env: Mapping[str, str] | None = None,
     available: tuple[str, ...] | list[str],
     cuda_ok: bool,
     libllvm: str | None,
