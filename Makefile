@@ -5,7 +5,8 @@
 #               center-surround events in the office and on the sodium-lit street, with
 #               flicker/noise counterfactuals and reconstructions; table + report in
 #               out/demo_study (report.md)
-#   make test   runs the test suite, ruff included (tests/test_lint.py)
+#   make test   runs the test suite, ruff and mypy included (tests/test_lint.py,
+#               tests/test_typing.py); pytest -m "not slow" leaves out the seconds-long renders
 # Both bootstrap .venv, the package with its extras, and the LLVM runtime that
 # Mitsuba's fast CPU variant needs (apt-get, when run as root). Re-running
 # either redoes nothing that is finished.

@@ -250,6 +250,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
                 update(k + 1, len(methods))
     finally:
         close()
+    assert gt is not None and tone is not None  # at least one method ran
     settings = {"methods": methods, "mean": args.mean, "c": args.c, "contrast": args.contrast,
                 "reference": args.reference}
     summary = write_reconstructions(args.out, args.file, results, gt, tone, settings=settings,

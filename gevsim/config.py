@@ -8,7 +8,7 @@ import math
 import tomllib
 from dataclasses import fields
 from pathlib import Path
-from typing import Self
+from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Self
 
 from gevsim import _validate
 from gevsim._validate import FieldError  # defined with the checks that raise it; re-exported here
@@ -41,6 +41,8 @@ class FromTable:
     """
 
     TABLE = ""
+    if TYPE_CHECKING:  # every subclass is a dataclass
+        __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
 
     @classmethod
     def from_table(cls, table: dict, *, source: str | None = None, where: str | None = None,
@@ -82,11 +84,11 @@ class TomlReader:
     def __init__(self, source: str):
         self.source = source
 
-    def fail(self, key: str, message: str):
+    def fail(self, key: str, message: str) -> NoReturn:
         raise ConfigError(message, source=self.source, key=key)
 
-    def number(self, table: dict, key: str, where: str, default=None, *, positive=False, minimum=None, maximum=None,
-               integer=False):
+    def number(self, table: dict, key: str, where: str, default: Any = None, *, positive: bool = False,
+               minimum: float | None = None, maximum: float | None = None, integer: bool = False) -> Any:
         if key not in table:
             if default is None:
                 self.fail(f"{where}.{key}", "missing")
@@ -94,14 +96,17 @@ class TomlReader:
         value = table[key]
         try:
             if integer:
-                _validate.integer(value, key, low=1 if positive else minimum, high=maximum)
+                low = 1 if positive else None if minimum is None else int(minimum)
+                _validate.integer(value, key, low=low, high=None if maximum is None else int(maximum))
             else:
                 _validate.real(value, key, low=0.0 if positive else minimum, low_open=positive, high=maximum)
         except FieldError as err:
             self.fail(f"{where}.{key}", str(err))
         return value
 
-    def vector(self, table: dict, key: str, where: str, default=None, *, n=3, nonnegative=False):
+    def vector(self, table: dict, key: str, where: str, default: tuple[float, float, float] | None = None, *,
+               nonnegative: bool = False) -> tuple[float, float, float]:
+        """A 3-vector of finite numbers (a position, direction or RGB triple)."""
         if key not in table:
             if default is None:
                 self.fail(f"{where}.{key}", "missing")
@@ -109,13 +114,14 @@ class TomlReader:
         value = table[key]
         if (
             not isinstance(value, list)
-            or len(value) != n
+            or len(value) != 3
             or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
         ):
-            self.fail(f"{where}.{key}", f"expected {n} finite numbers, got {value!r}")
+            self.fail(f"{where}.{key}", f"expected 3 finite numbers, got {value!r}")
         if nonnegative and any(v < 0 for v in value):
             self.fail(f"{where}.{key}", f"must not be negative, got {value!r}")
-        return tuple(float(v) for v in value)
+        x, y, z = (float(v) for v in value)
+        return x, y, z
 
     def table(self, data: dict, key: str, where: str = "") -> dict:
         value = data.get(key, {})

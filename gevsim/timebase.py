@@ -3,9 +3,11 @@ stage that consumes a chunk of samples over time (:func:`check_chunk`)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from gevsim._validate import FieldError, integer, real, real_array
 from gevsim.config import FromTable
@@ -58,7 +60,8 @@ class TimeGrid(FromTable):
         return np.arange(0.0, duration_s + 1e-12, 1.0 / self.frame_rate_hz)
 
 
-def check_chunk(values, t_s, *, shape, name: str, after: float | None):
+def check_chunk(values: ArrayLike, t_s: ArrayLike, *, shape: Sequence[int], name: str,
+                after: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validate a chunk of samples ``values`` (T, H, W) at strictly increasing times
     ``t_s`` (T,), all later than ``after`` (None: no earlier sample).
 

@@ -31,8 +31,8 @@ from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
 from gevsim.optics.photometry import K_M_LM_PER_W
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
-from gevsim.pixel.presets import with_overrides
-from gevsim.render import MitsubaScene, load, override, render_basis
+from gevsim.pixel.presets import SensorPreset, with_overrides
+from gevsim.render import MitsubaScene, SceneManifest, VariantChoice, load, override, render_basis
 from gevsim.render.scene_config import resolved_config, scene_optics
 
 log = logging.getLogger(__name__)
@@ -45,13 +45,13 @@ DEFAULT_SPECTRUM = "D65"  # for light groups given as RGB radiance without a lam
 class Setup:
     """Everything a run needs before its time loop."""
 
-    manifest: object
-    preset: object
+    manifest: SceneManifest
+    preset: SensorPreset
     basis_times_s: np.ndarray
     current_basis: np.ndarray  # (P, K, H, W) photocurrent per unit waveform, A
     waveforms: tuple
     duration_s: float
-    variant: object
+    variant: VariantChoice
     current_noise: np.ndarray | None = None  # (P, K, H, W): the render's error sample in photocurrent
     render_quality: dict = dataclasses.field(default_factory=dict)  # achieved render noise (summarize_quality)
     chip_lux_per_a: np.ndarray | None = None  # (K,): illuminance on the chip per ampere of each group's photocurrent
@@ -92,6 +92,7 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
                               source=config.source, key=f"light.groups.{group}")
     scale = config.light_scale * np.array([config.group_scale.get(g, 1.0) for g in names])
     per_group = (factors * scale)[None, :, None, None] * cos4[None, None]
+    assert basis.noise is not None  # render_basis always draws the error sample
     current = (luminance(basis.images) * per_group).astype(np.float64)
     noise = (luminance(basis.noise) * per_group).astype(np.float64)
     waveforms = tuple(from_spec(config.group_waveform[g], source=config.source, key=f"light.groups.{g}.waveform")
@@ -163,7 +164,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}
-    aps = ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED])) if config.aps else None
+    aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))
+           if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
     aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
 
     n_steps = config.time.steps(setup.duration_s)
@@ -180,8 +182,9 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
                      extra_attrs=extra) as wr:
         for name, em in emulators.items():  # what reconstruction needs: theta, nominal contrast steps
-            if EMULATORS[name].thresholds is not None:
-                layout.write_thresholds(wr, name, EMULATORS[name].thresholds(em, preset))
+            stored = EMULATORS[name].thresholds
+            if stored is not None:
+                layout.write_thresholds(wr, name, stored(em, preset))
         if config.frame_rate_hz > 0:
             _write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
         chunks = range(0, n_steps, config.chunk_steps)

@@ -83,6 +83,7 @@ def emulate_frames(frames: np.ndarray, t_s: np.ndarray, *, emulators: Sequence[s
     real(log_eps, "log_eps", low=0.0, low_open=True)
     out = {}
     for entry in entries.values():
+        assert entry.build_frames is not None  # every FRAME_EMULATORS entry has one
         emu = entry.build_frames(shape, thresholds=thresholds, dvs_params=dvs_params, rng=rng)
         out[entry.stream] = emu.process(np.log(f + log_eps) if entry.log_input else f, t)
     return out
@@ -120,6 +121,7 @@ def run_frames(frames: np.ndarray, t_s: np.ndarray, out: str | os.PathLike, *, s
             wr.append(name, events)
         for name, entry in EMULATORS.items():
             if entry.decodes and entry.stream in streams:  # what decoding and reconstruction start from
+                assert entry.build_frames is not None and entry.thresholds is not None  # decoders run on frames
                 em = entry.build_frames((h, w), thresholds=PAPER_THRESHOLDS, dvs_params=None, rng=None)
                 layout.write_thresholds(wr, name, entry.thresholds(em, None))
                 layout.write_initial_state(wr, name, em.ternary_of(frames[0]))

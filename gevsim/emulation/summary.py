@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -24,13 +24,16 @@ class _Fields:
     """Read-only ``result["field"]`` on a frozen result dataclass, for code written against the
     dicts these results used to be; :meth:`as_dict` gives a JSON-ready copy."""
 
+    if TYPE_CHECKING:  # the subclasses are dataclasses
+        __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
+
     def __getitem__(self, key: str) -> Any:
-        if key not in {f.name for f in dataclasses.fields(self)}:  # type: ignore[arg-type]
+        if key not in {f.name for f in dataclasses.fields(self)}:
             raise KeyError(key)
         return getattr(self, key)
 
     def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)  # type: ignore[call-overload]
+        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,7 +105,8 @@ def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT)
                 ev = r.read(stream, int(ft[0]) + 1, int(ft[-1]) + 1)
                 probabilities.append(event_probability(ev, ft, width=w, height=h))
             # Rates from windows of WINDOW_US, so memory stays bounded for any duration.
-            totals, count = {}, 0
+            totals: dict[str, float] = {}
+            count = 0
             for start in range(0, int(r.t_end_us) + 1, WINDOW_US):
                 ev = r.read(stream, start, start + WINDOW_US)
                 count += len(ev)

@@ -8,6 +8,7 @@ import csv
 import io
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -57,7 +58,7 @@ def write_reconstructions(out: str | Path, source: str | Path, results: list, gt
     gt01 = tone(gt)
     recs01 = {r.method: tone(r.frames) for r in results}
     per_frame = {name: r.metrics for name, r in zip(recs01, results)}
-    summary = {
+    summary: dict[str, Any] = {
         "gevsim": gevsim.__version__,
         "source": str(source),
         "settings": settings,
@@ -67,9 +68,10 @@ def write_reconstructions(out: str | Path, source: str | Path, results: list, gt
         "bandwidth": {},
         "bits_per_event": bits_per_event,
     }
+    bandwidth: dict[str, dict] = summary["bandwidth"]
     for name, r in zip(recs01, results):
         st = streams[r.stream]
-        summary["bandwidth"][name] = {
+        bandwidth[name] = {
             "stream": r.stream,
             "events_per_s": st.rates_hz["total"],
             "event_probability": st.event_probability,

@@ -11,7 +11,10 @@ spread), as in v2e (Hu, Liu & Delbruck 2021).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from gevsim.events import _kernels
 from gevsim.events._runner import SampledSignal, run_with_buffers
@@ -19,7 +22,8 @@ from gevsim.events.types import BRIGHTNESS_DTYPE, empty
 from gevsim.pixel.params import EventParams
 
 
-def per_pixel_thresholds(shape, params: EventParams, *, rng: np.random.Generator):
+def per_pixel_thresholds(shape: Sequence[int], params: EventParams, *,
+                         rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """ON and OFF thresholds (ln units) with independent Gaussian mismatch, floored at 5 % of nominal."""
     sigma = params.threshold_mismatch_ln
     on = params.threshold_on_ln + sigma * rng.standard_normal(shape)
@@ -39,7 +43,7 @@ class BrightnessEmulator:
 
     dtype = BRIGHTNESS_DTYPE
 
-    def __init__(self, shape, params: EventParams, *, rng: np.random.Generator):
+    def __init__(self, shape: Sequence[int], params: EventParams, *, rng: np.random.Generator):
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         self.clock = SampledSignal(shape)
@@ -55,7 +59,7 @@ class BrightnessEmulator:
         self.v_prev = np.zeros(n)
         self.last_t = np.full(n, -np.inf)
 
-    def process(self, signal, t_s) -> np.ndarray:
+    def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Events (sorted by time) from samples ``signal`` (T, H, W) in ln units at times ``t_s`` (T,).
 
         The signal is linear between samples; the very first sample only sets

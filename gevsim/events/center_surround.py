@@ -13,8 +13,11 @@ product of 1-D exponential kernels exp(-|x|/l').
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numba import njit, prange
+from numpy.typing import ArrayLike
 
 from gevsim._validate import real
 from gevsim.events.brightness import BrightnessEmulator
@@ -55,7 +58,8 @@ def _solve(line, out, inv_den, upper, c):
 
 
 @njit(parallel=True, cache=True)
-def diffuse(image, out, inv_x, up_x, inv_y, up_y, c):
+def diffuse(image: np.ndarray, out: np.ndarray, inv_x: np.ndarray, up_x: np.ndarray, inv_y: np.ndarray,
+            up_y: np.ndarray, c: float) -> None:
     """Separable resistive-grid diffusion of one (H, W) image into ``out``."""
     h, w = image.shape
     tmp = np.empty((h, w))
@@ -69,7 +73,8 @@ def diffuse(image, out, inv_x, up_x, inv_y, up_y, c):
 
 
 @njit(parallel=True, cache=True)
-def centre_minus_surround(v, decay, surround, inv_x, up_x, inv_y, up_y, c, diff):
+def centre_minus_surround(v: np.ndarray, decay: np.ndarray, surround: np.ndarray, inv_x: np.ndarray,
+                          up_x: np.ndarray, inv_y: np.ndarray, up_y: np.ndarray, c: float, diff: np.ndarray) -> None:
     """For each step k: target = diffuse(v[k]); surround <- target + decay[k] (surround - target)
     (exact first-order low-pass for held input); diff[k] = v[k] - surround. ``surround`` is
     updated in place (the state carried across chunks)."""
@@ -104,7 +109,7 @@ class CenterSurroundEmulator:
     rng : draws the fixed patterns of the event circuit.
     """
 
-    def __init__(self, shape, params: EventParams, *, surround_length_px: float = 2.0,
+    def __init__(self, shape: Sequence[int], params: EventParams, *, surround_length_px: float = 2.0,
                  surround_tau_s: float = 1e-3, rng: np.random.Generator):
         real(surround_length_px, "surround_length_px", low=0.0, low_open=True)
         real(surround_tau_s, "surround_tau_s", low=0.0)
@@ -124,7 +129,7 @@ class CenterSurroundEmulator:
         diffuse(np.ascontiguousarray(image, dtype=np.float64), out, *self._x, *self._y, self.c)
         return out
 
-    def process(self, signal, t_s) -> np.ndarray:
+    def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Events from centre minus surround for samples ``signal`` (T, H, W) at ``t_s`` (T,)."""
         v, t_start, t_end, first = self.dvs.clock.steps(signal, t_s, name="signal")
         if len(t_end) == 0:
@@ -133,7 +138,7 @@ class CenterSurroundEmulator:
         decay = np.exp(-(t_end - t_start) / tau) if tau > 0 else np.zeros(len(t_end))
         if first:  # the surround starts settled on the first sample
             decay[0] = 0.0
-        surround = np.zeros(self.shape) if first else self.surround.copy()
+        surround = np.zeros(self.shape) if first or self.surround is None else self.surround.copy()
         diff = np.empty(v.shape)
         centre_minus_surround(v, decay, surround, *self._x, *self._y, self.c, diff)
         events = self.dvs.process(diff, t_end)

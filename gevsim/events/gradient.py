@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from gevsim._validate import real, real_list
 from gevsim.events import _kernels
@@ -33,7 +34,7 @@ PAPER_THRESHOLDS = (4 / 255, 8 / 255, 16 / 255)
 LN_THRESHOLDS = (0.05, 0.1, 0.2)
 
 
-def threshold_matrix(shape, thresholds: Sequence[float] = PAPER_THRESHOLDS) -> np.ndarray:
+def threshold_matrix(shape: Sequence[int], thresholds: Sequence[float] = PAPER_THRESHOLDS) -> np.ndarray:
     """Theta(x, y) = thresholds[(x + y) mod n], shape (H, W)."""
     t = np.asarray(real_list(thresholds, "thresholds", positive=True), dtype=np.float64)
     h, w = shape
@@ -108,7 +109,8 @@ class GradientEmulator:
 
     dtype = GRADIENT_DTYPE
 
-    def __init__(self, shape, *, thresholds_ln=LN_THRESHOLDS, theta=None, mismatch_sigma_ln: float = 0.0,
+    def __init__(self, shape: Sequence[int], *, thresholds_ln: Sequence[float] = LN_THRESHOLDS,
+                 theta: ArrayLike | None = None, mismatch_sigma_ln: float = 0.0,
                  rc: bool = False, interpolate: bool = True, hysteresis_ln: float = 0.0,
                  rng: np.random.Generator | None = None):
         self.clock = SampledSignal(shape)
@@ -141,7 +143,7 @@ class GradientEmulator:
             t[AXIS_Y, 1::2, :] = 0
         return t
 
-    def process(self, signal, t_s) -> np.ndarray:
+    def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Events sorted by time from samples ``signal`` (T, H, W) at times ``t_s``.
 
         The first sample sets the initial ternary state (no events); see

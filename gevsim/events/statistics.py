@@ -13,6 +13,7 @@ p_b ~ 0.15 on ECD, MVSEC and HQF.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from gevsim._validate import increasing, real, size
 from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, is_gradient
@@ -22,7 +23,7 @@ def _frame_times(frame_t_us) -> np.ndarray:
     return increasing(frame_t_us, "frame_t_us", what="frame", unit="us")
 
 
-def event_probability(events: np.ndarray, frame_t_us, *, width: int, height: int) -> np.ndarray:
+def event_probability(events: np.ndarray, frame_t_us: ArrayLike, *, width: int, height: int) -> np.ndarray:
     """Event probability per ground-truth frame k = 1 .. M-1 (Lehtonen et al.).
 
     Parameters

@@ -16,8 +16,8 @@ import logging
 import multiprocessing
 import os
 from collections.abc import Callable, Iterator
-from typing import Any
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from typing import Any
 
 from gevsim.errors import ConfigError, MissingExtraError, suggest
 

@@ -157,7 +157,8 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         record["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
     mean_basis = setup.current_basis.mean(axis=0)  # (K, H, W), A per unit waveform
     data = {"mean_current_a": mean_basis.sum(axis=0),
-            "chip_lux": np.tensordot(setup.chip_lux_per_a, mean_basis, axes=1), "dominant_group": np.argmax(mean_basis, axis=0).astype(np.int16),
+            "chip_lux": np.tensordot(setup.chip_lux_per_a, mean_basis, axes=1),
+            "dominant_group": np.argmax(mean_basis, axis=0).astype(np.int16),
             "group_names": np.array(m.group_names)}
     for variant, per_emulator in folded.items():
         for e, f in per_emulator.items():

@@ -139,7 +139,7 @@ def findings(rows: list[dict], study: Study) -> list[str]:
             out.append(f"The phase-locked estimator (no subtraction) and the counterfactual agree on whether flicker "
                        f"acts in all {checked} (run, stream) pairs where both were made.")
         leaks = [(r, e) for r in rows for e in _emulators(rows)
-                 if f"{e}_phase_locked_control_per_pixel_s_low" in r and r[f"{e}_phase_locked_control_per_pixel_s_low"] > 0]
+                 if r.get(f"{e}_phase_locked_control_per_pixel_s_low", 0.0) > 0]
         if leaks:
             out.append(f"In {len(leaks)} (run, stream) pairs the flicker-free counterfactual itself shows a rate "
                        "modulation at the lamp's harmonics (scene motion or pose changes at those frequencies): "

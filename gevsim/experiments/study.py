@@ -145,7 +145,8 @@ def load_study(path: str | Path) -> Study:
     for values in sweep.get("thresholds_ln", []):
         if (not isinstance(values, list) or not values
                 or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in values)):
-            r.fail("sweep.thresholds_ln", f"expected lists of positive numbers (one threshold set each), got {values!r}")
+            r.fail("sweep.thresholds_ln",
+                   f"expected lists of positive numbers (one threshold set each), got {values!r}")
     for method in st.get("methods", ["dct", "direct"]):
         try:
             needs = check_method(method).emulator

@@ -108,8 +108,14 @@ class PeriodicWaveform(Waveform):
     def _cum_one(self, r: np.ndarray) -> np.ndarray:
         """Integral from phase 0 to ``r`` in ``[0, period_s]``."""
 
-    def _split(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    @property
+    def _period(self) -> float:
         p = self.period_s
+        assert p is not None  # a periodic waveform has a period
+        return p
+
+    def _split(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = self._period
         u = t - self._shift_s
         n = np.floor(u / p)
         r = np.clip(u - n * p, 0.0, p)
@@ -118,13 +124,13 @@ class PeriodicWaveform(Waveform):
     def _phase(self, t: np.ndarray) -> np.ndarray:
         """Time since the last phase 0, in ``[0, period_s)``."""
         r = self._split(t)[1]
-        return np.where(r >= self.period_s, 0.0, r)
+        return np.where(r >= self._period, 0.0, r)
 
     def integral(self, t_start: Any, t_end: Any) -> np.ndarray:
         a, b = np.broadcast_arrays(as_time(t_start), as_time(t_end))
         na, ra = self._split(a)
         nb, rb = self._split(b)
-        whole = float(self._cum_one(np.float64(self.period_s)))
+        whole = float(self._cum_one(np.asarray(self._period)))
         return (nb - na) * whole + (self._cum_one(rb) - self._cum_one(ra))
 
     def cumulative(self, t: Any) -> np.ndarray:

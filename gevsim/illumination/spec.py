@@ -55,7 +55,7 @@ def from_spec(spec: Mapping[str, Any], *, source: str | None = None, key: str = 
         raise ConfigError(f"unknown waveform type {name!r}{hint}; one of: {', '.join(WAVEFORMS)}",
                           source=source, key=f"{key}.type")
     cls = WAVEFORMS[name]
-    fields = dataclasses.fields(cls)
+    fields = dataclasses.fields(cls)  # type: ignore[arg-type]  # every registered waveform is a dataclass
     params = {k: v for k, v in spec.items() if k != "type"}
     check_keys(params, ["type", *(f.name for f in fields)], source=source, where=key)
     required = [f.name for f in fields

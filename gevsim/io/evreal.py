@@ -106,7 +106,7 @@ def export_evreal(folder: str | os.PathLike, events: np.ndarray, images: np.ndar
         save("events_ts.npy", events["t"] / 1e6)
         save("events_xy.npy", np.stack([events["x"], events["y"]], axis=1).astype(np.int16))
         save("events_p.npy", events["p"].astype(np.uint8))
-        if images is not None:
+        if images is not None and images_t_us is not None:
             save("images.npy", images[..., None])
             save("images_ts.npy", (images_t_us / 1e6).reshape(-1, 1))
             save("image_event_indices.npy", image_event_indices(events["t"], images_t_us))

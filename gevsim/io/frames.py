@@ -111,7 +111,7 @@ def load_frame_folder(folder: str | os.PathLike, *, fps: float | None = None) ->
                     and p.suffix.lower() in IMAGE_SUFFIXES), key=lambda p: _natural_key(p.name))
     if not files:
         raise ConfigError(f"no image files ({', '.join(IMAGE_SUFFIXES)}) in the folder", source=str(folder))
-    frames = []
+    frames: list[np.ndarray] = []
     for path in files:
         try:
             img = _imread(path)
@@ -168,6 +168,6 @@ def load_video(path: str | os.PathLike, *, fps: float | None = None) -> tuple[np
 def load_evreal_frames(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """The ground-truth frames of an EVREAL sequence folder: (images / 255, images_ts in s)."""
     _, images, images_t_us, _, _ = import_evreal(folder)
-    if images is None or len(images) == 0:
+    if images is None or images_t_us is None or len(images) == 0:
         raise ConfigError("the EVREAL sequence has no ground-truth images (images.npy)", source=str(folder))
     return images.astype(np.float64) / 255.0, images_t_us.astype(np.float64) / 1e6

@@ -44,13 +44,14 @@ class _Stream:
     """Write-side state of one event stream: counts, last time, ms_to_idx progress."""
 
     def __init__(self, group: h5py.Group, dtype: np.dtype, compression: str):
-        self.dtype, self.n, self.last_t, self.n_ms = dtype, 0, None, 0
+        self.dtype, self.n, self.n_ms = dtype, 0, 0
+        self.last_t: int | None = None
         group.attrs["kind"] = "events"
-        group.attrs["fields"] = list(dtype.names)
+        group.attrs["fields"] = list(dtype.names or ())
         self.fields = {
             name: group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype[name],
                                        chunks=(CHUNK,), compression=compression)
-            for name in dtype.names
+            for name in dtype.names or ()
         }
         self.ms = group.create_dataset("ms_to_idx", shape=(0,), maxshape=(None,), dtype=np.int64,
                                        chunks=(4096,), compression=compression)
@@ -107,12 +108,11 @@ class EventWriter:
     def __enter__(self) -> EventWriter:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> bool:
+    def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
         if exc_type is None:
             self.close()
         else:
             self.abort()
-        return False
 
     @property
     def closed(self) -> bool:
@@ -150,7 +150,7 @@ class EventWriter:
             ds.resize((n1,))
             ds[n0:n1] = np.ascontiguousarray(events[name])
         state.n, state.last_t = n1, int(t[-1])
-        k_last = state.last_t // 1000  # entries k <= k_last are now final
+        k_last = int(t[-1]) // 1000  # entries k <= k_last are now final
         if k_last >= state.n_ms:
             ks = np.arange(state.n_ms, k_last + 1, dtype=np.int64) * 1000
             state.extend_ms(n0 + np.searchsorted(t, ks, side="left"))
@@ -228,7 +228,7 @@ class EventWriter:
         log.debug("wrote %s", self.path)
 
     def _finalise(self, t_end_us: int | None) -> None:
-        last = max((s.last_t for s in self._streams.values() if s.last_t is not None), default=0)
+        last = max((s.last_t or 0 for s in self._streams.values()), default=0)
         if t_end_us is None:
             t_end_us = last
         if t_end_us < last:
@@ -279,9 +279,8 @@ class EventReader:
     def __enter__(self) -> EventReader:
         return self
 
-    def __exit__(self, *exc) -> bool:
+    def __exit__(self, *exc: object) -> None:
         self.close()
-        return False
 
     def close(self) -> None:
         self._file.close()
@@ -341,7 +340,7 @@ class EventReader:
         b = lo + (int(np.searchsorted(t, t_end_us, side="left")) if t_end_us is not None else len(t))
         b = max(a, b)
         out = np.empty(b - a, dtype=dtype)
-        for name in dtype.names:
+        for name in dtype.names or ():
             out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]
         return out
 

@@ -26,8 +26,11 @@ from __future__ import annotations
 import importlib.util
 import math
 import os
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from skimage.metrics import mean_squared_error, structural_similarity
 
 from gevsim._validate import real, real_array
@@ -48,13 +51,13 @@ def _pair(pred, gt):
     return np.clip(pred.astype(np.float64), 0.0, 1.0), np.clip(gt.astype(np.float64), 0.0, 1.0)
 
 
-def mse(pred, gt) -> float:
+def mse(pred: ArrayLike, gt: ArrayLike) -> float:
     """Mean squared error of the [0, 1]-clipped frames (EVREAL's MseMetric)."""
     p, g = _pair(pred, gt)
     return float(mean_squared_error(g, p))
 
 
-def ssim(pred, gt) -> float:
+def ssim(pred: ArrayLike, gt: ArrayLike) -> float:
     """SSIM of the [0, 1]-clipped frames with EVREAL's arguments (:data:`SSIM_KWARGS`)."""
     p, g = _pair(pred, gt)
     if min(p.shape) < _SSIM_MIN_SIDE:
@@ -62,7 +65,7 @@ def ssim(pred, gt) -> float:
     return float(structural_similarity(g, p, **SSIM_KWARGS))
 
 
-def psnr(pred, gt) -> float:
+def psnr(pred: ArrayLike, gt: ArrayLike) -> float:
     """10 log10(1 / MSE) in dB on the [0, 1]-clipped frames; ``inf`` when they are equal."""
     e = mse(pred, gt)
     return math.inf if e == 0.0 else 10.0 * math.log10(1.0 / e)
@@ -93,7 +96,7 @@ def lpips_available() -> bool:
 _LPIPS_NET = None
 
 
-def lpips(pred, gt) -> float | None:
+def lpips(pred: ArrayLike, gt: ArrayLike) -> float | None:
     """LPIPS (AlexNet, v0.1) of the clipped frames, or None when unavailable (see :func:`lpips_unavailable_reason`)."""
     p, g = _pair(pred, gt)
     if not lpips_available():
@@ -112,16 +115,18 @@ def lpips(pred, gt) -> float | None:
         return float(_LPIPS_NET(tensor(p), tensor(g)).item())
 
 
-def frame_metrics(pred, gt) -> dict:
+def frame_metrics(pred: ArrayLike, gt: ArrayLike) -> dict:
     """``{"mse", "ssim", "psnr", "lpips"}`` for one frame pair; ``lpips`` is None when unavailable,
     with the reason under ``"unavailable"`` (a dict metric name -> reason)."""
-    out = {"mse": mse(pred, gt), "ssim": ssim(pred, gt), "psnr": psnr(pred, gt), "lpips": lpips(pred, gt)}
+    out: dict[str, Any] = {"mse": mse(pred, gt), "ssim": ssim(pred, gt), "psnr": psnr(pred, gt),
+                           "lpips": lpips(pred, gt)}
     reason = lpips_unavailable_reason()
     out["unavailable"] = {} if reason is None else {"lpips": reason}
     return out
 
 
-def pair_by_timestamp(pred_t_us, gt_t_us, *, tolerance_us=TS_TOL_US):
+def pair_by_timestamp(pred_t_us: ArrayLike, gt_t_us: ArrayLike, *,
+                      tolerance_us: float = TS_TOL_US) -> tuple[np.ndarray, np.ndarray]:
     """Match each reconstruction to the ground-truth frame nearest in time.
 
     Returns ``(pred_idx, gt_idx)`` int arrays. A reconstruction whose nearest
@@ -146,14 +151,15 @@ def pair_by_timestamp(pred_t_us, gt_t_us, *, tolerance_us=TS_TOL_US):
     return np.flatnonzero(keep), nearest[keep]
 
 
-def sequence_metrics(preds, pred_t, gts, gt_t, *, tolerance_us=TS_TOL_US) -> dict:
+def sequence_metrics(preds: ArrayLike, pred_t: ArrayLike, gts: ArrayLike, gt_t: ArrayLike, *,
+                     tolerance_us: float = TS_TOL_US) -> dict:
     """Per-sequence mean of :func:`frame_metrics` over timestamp-paired frames.
 
     Non-finite frame scores (PSNR of identical frames) are left out of the
     mean, as EVREAL does. The result holds ``n_frames`` (pairs scored) and
     ``unavailable`` (metric -> reason). Raises ValueError when no frame pairs.
     """
-    preds, gts = np.asarray(preds), np.asarray(gts)
+    preds, gts, pred_t, gt_t = np.asarray(preds), np.asarray(gts), np.asarray(pred_t), np.asarray(gt_t)
     if preds.ndim != 3 or gts.ndim != 3:
         raise ValueError(f"preds and gts must be (N, H, W) stacks, got {preds.shape} and {gts.shape}")
     if len(pred_t) != preds.shape[0] or len(gt_t) != gts.shape[0]:
@@ -164,7 +170,7 @@ def sequence_metrics(preds, pred_t, gts, gt_t, *, tolerance_us=TS_TOL_US) -> dic
     if pi.size == 0:
         raise ValueError(f"no ground-truth frame within {tolerance_us} us of any reconstruction: nothing to score")
     per = [frame_metrics(preds[i], gts[j]) for i, j in zip(pi, gi)]
-    out = {}
+    out: dict[str, Any] = {}
     for key in ("mse", "ssim", "psnr", "lpips"):
         vals = [f[key] for f in per]
         if any(v is None for v in vals):
@@ -177,7 +183,7 @@ def sequence_metrics(preds, pred_t, gts, gt_t, *, tolerance_us=TS_TOL_US) -> dic
     return out
 
 
-def aggregate(results) -> dict:
+def aggregate(results: Sequence[dict]) -> dict:
     """Frame-count-weighted mean over sequences: ``results`` is a list of (metrics dict, n_frames).
 
     Sequences with zero frames are skipped (EVREAL's MetricTracker). A metric

@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from gevsim._validate import real, real_array, size
 
@@ -70,7 +71,7 @@ class Lens:
         return math.degrees(2.0 * math.atan(width * pitch_m / (2.0 * self.focal_length_m)))
 
 
-def focal_plane_irradiance(radiance, *, lens: Lens, cos4=None) -> np.ndarray:
+def focal_plane_irradiance(radiance: ArrayLike, *, lens: Lens, cos4: ArrayLike | None = None) -> np.ndarray:
     """Focal-plane irradiance E = L T pi/(4 N^2) cos^4(theta), in W/m^2.
 
     Parameters

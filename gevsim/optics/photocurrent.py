@@ -18,21 +18,23 @@ fitted. Constants from ``scipy.constants`` (CODATA).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import constants
 from scipy.integrate import trapezoid
 
 from gevsim._validate import real, real_array
 from gevsim.optics.lens import Lens
-from gevsim.optics.photometry import K_M_LM_PER_W, _spectrum_arrays, illuminance_lux, photopic_lef
-from gevsim.optics.sensor import Pixel, quantum_efficiency
+from gevsim.optics.photometry import K_M_LM_PER_W, Spectrum, _spectrum_arrays, illuminance_lux, photopic_lef
+from gevsim.optics.sensor import QE, Pixel, quantum_efficiency
 
 __all__ = ["responsivity_a_per_lm", "photocurrent_a", "group_photocurrent_factors"]
 
 
-def responsivity_a_per_lm(sd, *, qe=None) -> float:
+def responsivity_a_per_lm(sd: Spectrum, *, qe: QE = None) -> float:
     """Photocurrent per lumen of incident light with spectrum ``sd``, in A/lm.
 
     Parameters
@@ -55,7 +57,7 @@ def responsivity_a_per_lm(sd, *, qe=None) -> float:
     return float(amps / lumens)
 
 
-def photocurrent_a(irradiance_y, *, pixel: Pixel, responsivity_a_per_lm: float) -> np.ndarray:
+def photocurrent_a(irradiance_y: ArrayLike, *, pixel: Pixel, responsivity_a_per_lm: float) -> np.ndarray:
     """Photocurrent (A) of pixels with photopic-equivalent irradiance ``irradiance_y``.
 
     ``I = 683 * Y * pitch^2 * fill_factor * R``. Linear in Y, so it may be
@@ -77,7 +79,16 @@ def photocurrent_a(irradiance_y, *, pixel: Pixel, responsivity_a_per_lm: float) 
     return illuminance_lux(y) * (pixel.area_m2 * r)
 
 
-def group_photocurrent_factors(spectra, *, pixel: Pixel, lens: Lens):
+@overload
+def group_photocurrent_factors(spectra: Mapping[str, Spectrum], *, pixel: Pixel, lens: Lens) -> dict[str, float]: ...
+
+
+@overload
+def group_photocurrent_factors(spectra: Sequence[Spectrum], *, pixel: Pixel, lens: Lens) -> np.ndarray: ...
+
+
+def group_photocurrent_factors(spectra: Mapping[str, Spectrum] | Sequence[Spectrum], *, pixel: Pixel,
+                               lens: Lens) -> dict[str, float] | np.ndarray:
     """Photocurrent per unit photopic-equivalent radiance, one factor per light group.
 
     factor_k = T pi / (4 N^2) * 683 * pitch^2 * fill_factor * R_k   [A per W/(m^2 sr)]
@@ -106,7 +117,7 @@ def group_photocurrent_factors(spectra, *, pixel: Pixel, lens: Lens):
         raise TypeError(f"lens must be a gevsim.optics.Lens, got {type(lens).__name__}")
     scale = lens.irradiance_factor * K_M_LM_PER_W * pixel.area_m2
 
-    def factor(sd) -> float:
+    def factor(sd: Spectrum) -> float:
         return scale * responsivity_a_per_lm(sd, qe=pixel.qe)
 
     if isinstance(spectra, Mapping):

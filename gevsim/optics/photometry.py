@@ -20,10 +20,14 @@ from __future__ import annotations
 
 import colour
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.integrate import trapezoid
 
 from gevsim._validate import real, real_array
 from gevsim.errors import ConfigError, suggest
+
+#: A lamp spectrum: a name :func:`lamp_spectrum` knows, or a colour SpectralDistribution.
+Spectrum = str | colour.SpectralDistribution
 
 __all__ = [
     "K_M_LM_PER_W",
@@ -46,7 +50,7 @@ _LEF = "CIE 1924 Photopic Standard Observer"
 _CMFS = "CIE 1931 2 Degree Standard Observer"
 
 
-def luminance(rgb_or_mono, *, mono: bool | None = None) -> np.ndarray:
+def luminance(rgb_or_mono: ArrayLike, *, mono: bool | None = None) -> np.ndarray:
     """Luminance Y of photopic-equivalent values (Rec.709 weights).
 
     Parameters
@@ -82,7 +86,7 @@ def luminance(rgb_or_mono, *, mono: bool | None = None) -> np.ndarray:
     )
 
 
-def illuminance_lux(irradiance_y):
+def illuminance_lux(irradiance_y: ArrayLike) -> np.ndarray:
     """Illuminance in lux = 683 lm/W * photopic-equivalent irradiance Y (W/m^2)."""
     return K_M_LM_PER_W * np.asarray(irradiance_y, dtype=float)
 
@@ -92,7 +96,7 @@ def lamp_names() -> tuple[str, ...]:
     return tuple(colour.SDS_ILLUMINANTS.keys()) + tuple(colour.SDS_LIGHT_SOURCES.keys())
 
 
-def lamp_spectrum(name, *, source: str | None = None, key: str | None = None):
+def lamp_spectrum(name: Spectrum, *, source: str | None = None, key: str | None = None) -> colour.SpectralDistribution:
     """Relative spectral power distribution of a named lamp.
 
     Parameters
@@ -142,7 +146,7 @@ def _on_grid(table, wavelengths: np.ndarray) -> np.ndarray:
     )
 
 
-def photopic_lef(wavelength_nm) -> np.ndarray:
+def photopic_lef(wavelength_nm: ArrayLike) -> np.ndarray:
     """CIE 1924 photopic luminous efficiency V(lambda), 0 outside 360-830 nm."""
     lef = colour.colorimetry.SDS_LEFS_PHOTOPIC[_LEF]
     return _on_grid(lef, np.asarray(wavelength_nm, dtype=float))
@@ -158,7 +162,7 @@ def _spectrum_arrays(sd) -> tuple[np.ndarray, np.ndarray]:
     return w, s
 
 
-def luminous_efficacy_lm_per_w(sd) -> float:
+def luminous_efficacy_lm_per_w(sd: Spectrum) -> float:
     """Luminous efficacy of radiation, 683 * int V S dl / int S dl, in lm/W.
 
     Integrals use the trapezoid rule on the spectrum's own wavelengths, as
@@ -172,7 +176,7 @@ def luminous_efficacy_lm_per_w(sd) -> float:
     return float(K_M_LM_PER_W * trapezoid(photopic_lef(w) * s, w) / radiant)
 
 
-def spectrum_to_rgb(sd, *, luminance_cd_m2: float) -> np.ndarray:
+def spectrum_to_rgb(sd: Spectrum, *, luminance_cd_m2: float) -> np.ndarray:
     """Linear sRGB emitter radiance with a lamp's chromaticity and a luminance.
 
     XYZ is integrated with colour's CIE 1931 2-degree colour matching

@@ -10,13 +10,19 @@ sensor's measured data. Pass a measured table for a specific sensor.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import colour
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import PchipInterpolator
 
 from gevsim._validate import increasing, real
+
+#: A QE spec: None (the default silicon curve), a constant in (0, 1], a (wavelengths_nm, qe) pair
+#: or a colour SpectralDistribution.
+QE = float | tuple[Sequence[float], Sequence[float]] | colour.SpectralDistribution | None
 
 __all__ = ["SILICON_QE_FSI", "silicon_qe", "silicon_qe_sd", "quantum_efficiency", "Pixel"]
 
@@ -58,7 +64,7 @@ def _as_table(table, *, name: str) -> tuple[tuple[float, ...], tuple[float, ...]
     return tuple(w.tolist()), tuple(v.tolist())
 
 
-def silicon_qe(wavelength_nm, *, table=None) -> np.ndarray:
+def silicon_qe(wavelength_nm: ArrayLike, *, table: QE = None) -> np.ndarray:
     """Quantum efficiency (electrons per photon) at ``wavelength_nm``.
 
     Parameters
@@ -82,14 +88,14 @@ def silicon_qe(wavelength_nm, *, table=None) -> np.ndarray:
     return np.clip(out, 0.0, 1.0)
 
 
-def silicon_qe_sd(*, table=None) -> colour.SpectralDistribution:
+def silicon_qe_sd(*, table: QE = None) -> colour.SpectralDistribution:
     """:func:`silicon_qe` sampled every 5 nm over its table range, as a SpectralDistribution."""
     w, _ = _as_table(SILICON_QE_FSI if table is None else table, name="qe")
     grid = np.arange(w[0], w[-1] + 1e-9, 5.0)
     return colour.SpectralDistribution(silicon_qe(grid, table=table), grid, name="silicon QE")
 
 
-def quantum_efficiency(wavelength_nm, *, qe=None) -> np.ndarray:
+def quantum_efficiency(wavelength_nm: ArrayLike, *, qe: QE = None) -> np.ndarray:
     """QE at ``wavelength_nm`` for a QE spec: None (default silicon curve), a
     constant in (0, 1], a (wavelengths_nm, qe) pair or a SpectralDistribution."""
     x = np.asarray(wavelength_nm, dtype=float)
@@ -118,7 +124,7 @@ class Pixel:
 
     pitch_m: float = 18.5e-6
     fill_factor: float = 0.22
-    qe: object = None
+    qe: QE = None
 
     def __post_init__(self):
         object.__setattr__(self, "pitch_m", real(self.pitch_m, "pitch_m", low=0.0, low_open=True))
@@ -138,6 +144,6 @@ class Pixel:
         """Photosensitive area, pitch^2 * fill_factor, in m^2."""
         return self.pitch_m**2 * self.fill_factor
 
-    def qe_at(self, wavelength_nm) -> np.ndarray:
+    def qe_at(self, wavelength_nm: ArrayLike) -> np.ndarray:
         """This pixel's QE at ``wavelength_nm``."""
         return quantum_efficiency(wavelength_nm, qe=self.qe)

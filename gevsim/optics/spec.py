@@ -39,7 +39,7 @@ def from_spec(spec: dict, *, source: str | None = None, where: str = "optics") -
                 "qe table needs 'wavelength_nm' and 'qe' lists", source=source, key=f"{where}.qe"
             )
         qe = (qe["wavelength_nm"], qe["qe"])
-    parts = []
+    parts: list[Lens | Pixel] = []
     for cls, keys in ((Lens, _LENS_KEYS), (Pixel, _PIXEL_KEYS)):
         kwargs = {k: spec[k] for k in keys if k in spec}
         if "qe" in kwargs:
@@ -49,4 +49,6 @@ def from_spec(spec: dict, *, source: str | None = None, where: str = "optics") -
         except (TypeError, ValueError) as exc:
             key = next((k for k in kwargs if str(exc).startswith(k)), None)
             raise ConfigError(str(exc), source=source, key=f"{where}.{key}" if key else where) from exc
-    return parts[0], parts[1]
+    lens, pixel = parts
+    assert isinstance(lens, Lens) and isinstance(pixel, Pixel)
+    return lens, pixel

@@ -10,9 +10,11 @@ and PRNU are fixed patterns drawn once per sensor.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.constants import e as ELEMENTARY_CHARGE_C
 
 from gevsim._validate import increasing, integer, real, real_array
@@ -64,7 +66,8 @@ class ApsParams(FromTable):
         return (1 << self.bit_depth) - 1
 
 
-def exposure_electrons(photocurrent_a, t_edges_s, frame_start_s, exposure_s) -> np.ndarray:
+def exposure_electrons(photocurrent_a: ArrayLike, t_edges_s: ArrayLike, frame_start_s: ArrayLike,
+                       exposure_s: float) -> np.ndarray:
     """Mean photo-electrons collected in each global-shutter exposure window.
 
     Parameters
@@ -121,7 +124,7 @@ class ApsSensor:
     clipped at 0; both are drawn in ``__init__`` and kept for every frame.
     """
 
-    def __init__(self, shape, params: ApsParams, *, rng: np.random.Generator):
+    def __init__(self, shape: Sequence[int], params: ApsParams, *, rng: np.random.Generator):
         if not isinstance(params, ApsParams):
             raise TypeError(f"params must be an ApsParams, got {type(params).__name__}")
         if not isinstance(rng, np.random.Generator):
@@ -140,7 +143,8 @@ class ApsSensor:
                              f"got {electrons.shape}")
         return electrons, real(exposure_s, "exposure_s", low=0.0)
 
-    def read(self, electrons_mean, exposure_s, *, rng: np.random.Generator, output: str = "dn") -> np.ndarray:
+    def read(self, electrons_mean: ArrayLike, exposure_s: float, *, rng: np.random.Generator,
+             output: str = "dn") -> np.ndarray:
         """Read noisy frames (EMVA 1288) from the mean photo-electrons of each exposure.
 
         Parameters
@@ -173,7 +177,7 @@ class ApsSensor:
         dn = np.clip(np.rint(p.system_gain_dn_per_e * signal_e + p.offset_dn), 0, p.max_dn)
         return dn.astype(np.uint16) if output == "dn" else (dn / p.max_dn).astype(np.float32)
 
-    def mean_dn(self, electrons_mean, exposure_s) -> np.ndarray:
+    def mean_dn(self, electrons_mean: ArrayLike, exposure_s: float) -> np.ndarray:
         """Noise-free expected DN without fixed patterns (float64), for tests.
 
         ``K min(fill_factor_ratio e + dark_current t, full_well) + offset``,
@@ -186,7 +190,8 @@ class ApsSensor:
         return np.clip(p.system_gain_dn_per_e * e_total + p.offset_dn, 0.0, p.max_dn)
 
 
-def photon_transfer(frames_a, frames_b, *, dark_a=None, dark_b=None) -> tuple[np.ndarray, np.ndarray]:
+def photon_transfer(frames_a: ArrayLike, frames_b: ArrayLike, *, dark_a: ArrayLike | None = None,
+                    dark_b: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Mean and temporal variance of a pair of frames taken at the same exposure (EMVA 1288).
 
     ``mu_y = mean((a + b) / 2)`` and ``sigma_y^2 = var(a - b) / 2`` over the
@@ -213,7 +218,7 @@ def photon_transfer(frames_a, frames_b, *, dark_a=None, dark_b=None) -> tuple[np
     return mu, var
 
 
-def system_gain_from_ptc(means, variances) -> float:
+def system_gain_from_ptc(means: ArrayLike, variances: ArrayLike) -> float:
     """System gain ``K`` (DN/e-) as the least-squares slope of variance vs mean (photon transfer).
 
     EMVA 1288: ``sigma_y^2 - sigma_y.dark^2 = K (mu_y - mu_y.dark)``, so the

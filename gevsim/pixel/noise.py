@@ -8,14 +8,16 @@ reproduce and draws the per-pixel fixed patterns from a numpy Generator.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.constants import elementary_charge
 
 from gevsim.pixel.params import NoiseParams
 
 
-def shot_noise_variance_ln(photocurrent_a, cutoff_hz):
+def shot_noise_variance_ln(photocurrent_a: ArrayLike, cutoff_hz: ArrayLike) -> np.ndarray:
     """Stationary variance (ln units^2) of shot noise through a first-order low-pass.
 
     The shot noise of a current I has one-sided PSD 2 q I; in the log domain
@@ -50,7 +52,8 @@ def output_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndar
     return hz, var
 
 
-def fixed_pattern(shape, noise: NoiseParams, *, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *,
+                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel photocurrent gain (PRNU) and dark current (DSNU, lognormal), drawn once.
 
     The lognormal is scaled so that the mean dark current is ``dark_current_a``.

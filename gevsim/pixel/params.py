@@ -8,11 +8,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from scipy.constants import Boltzmann, elementary_charge
 
 from gevsim._validate import real
 from gevsim.config import FieldError, FromTable
+
+if TYPE_CHECKING:  # numpy is imported where it is used
+    import numpy as np
+    from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -61,7 +66,7 @@ class PhotoreceptorParams(FromTable):
         """n U_T: volts per unit of ln(photocurrent)."""
         return self.slope_factor * self.thermal_voltage_v
 
-    def cutoff_at(self, photocurrent_a):
+    def cutoff_at(self, photocurrent_a: ArrayLike) -> np.ndarray:
         """Cutoff frequency (Hz) at a total photocurrent (A): proportional, then capped."""
         import numpy as np
 

@@ -10,8 +10,10 @@ input; the optional second pole is also integrated exactly.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.constants import elementary_charge
 
 from gevsim.pixel import _kernels
@@ -34,7 +36,8 @@ class Photoreceptor:
     t0_s : start time; the first step ends at the first time given to :meth:`process`.
     """
 
-    def __init__(self, shape, *, params: PhotoreceptorParams, noise: NoiseParams, rng: np.random.Generator,
+    def __init__(self, shape: Sequence[int], *, params: PhotoreceptorParams, noise: NoiseParams,
+                 rng: np.random.Generator,
                  t0_s: float = 0.0):
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
@@ -62,16 +65,16 @@ class Photoreceptor:
     def volts_per_ln(self) -> float:
         return self.params.volts_per_ln
 
-    def to_volts(self, v_ln):
+    def to_volts(self, v_ln: ArrayLike) -> np.ndarray:
         """Photoreceptor output in volts from ln units."""
         return self.params.v0_v + self.params.volts_per_ln * np.asarray(v_ln)
 
-    def steady_state(self, photocurrent_a) -> np.ndarray:
+    def steady_state(self, photocurrent_a: ArrayLike) -> np.ndarray:
         """Noise-free settled output (ln units) for a constant photocurrent (H, W)."""
         i = np.asarray(photocurrent_a, float).reshape(-1)
         return np.log(i * self.gain + self.dark_a).reshape(self.shape)
 
-    def process(self, photocurrent_a, t_s) -> np.ndarray:
+    def process(self, photocurrent_a: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Advance over T steps and return the output (T, H, W) float32, in ln units.
 
         Parameters

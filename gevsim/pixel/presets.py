@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from gevsim.config import TomlReader, read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
@@ -56,8 +57,8 @@ def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None 
     ``events`` (e.g. ``cutoff_hz``, ``dark_current_a``, ``threshold_mismatch_ln``)."""
     import dataclasses
 
-    parts = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events}
-    top = {}
+    parts: dict[str, Any] = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events}
+    top: dict[str, Any] = {}
     for key, value in overrides.items():
         if key in ("pixel_pitch_m", "fill_factor"):
             upper = 1e-3 if key == "pixel_pitch_m" else 1.0

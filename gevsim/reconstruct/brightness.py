@@ -36,6 +36,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from gevsim._validate import increasing, real, real_array, size
 from gevsim.events.types import BRIGHTNESS_DTYPE
@@ -127,8 +128,9 @@ def _run(events, frame_t_us, frames, frames_t, width, height, c_on, c_off, alpha
     return _filter(x, y, t, c, frames, frames_t, out_t, state, last, alpha)
 
 
-def direct_integration(events, frame_t_us, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN,
-                       initial=None):
+def direct_integration(events: np.ndarray, frame_t_us: ArrayLike, *, width: int, height: int,
+                       contrast_on_ln: float = CONTRAST_LN, contrast_off_ln: float = CONTRAST_LN,
+                       initial: ArrayLike | None = None) -> np.ndarray:
     """Per-pixel sum of contrast steps up to each of ``frame_t_us``: (M, H, W) float64 log frames.
 
     An ON event adds ``contrast_on_ln``, an OFF event subtracts ``contrast_off_ln`` (ln units).
@@ -140,9 +142,10 @@ def direct_integration(events, frame_t_us, *, width, height, contrast_on_ln=CONT
 
 
 def high_pass_filter(
-    events, frame_t_us, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN,
-    cutoff_rad_s=HIGH_PASS_CUTOFF_RAD_S, initial=None
-):
+    events: np.ndarray, frame_t_us: ArrayLike, *, width: int, height: int, contrast_on_ln: float = CONTRAST_LN,
+    contrast_off_ln: float = CONTRAST_LN, cutoff_rad_s: float = HIGH_PASS_CUTOFF_RAD_S,
+    initial: ArrayLike | None = None
+) -> np.ndarray:
     """Events-only high-pass filter of Scheerlinck et al. (ACCV 2018): (M, H, W) float64 log frames.
 
     Each pixel decays as exp(-cutoff_rad_s dt) between its events and jumps by
@@ -156,18 +159,18 @@ def high_pass_filter(
 
 
 def complementary_filter(
-    events,
-    frames_log,
-    frames_t_us,
-    frame_t_us_out,
+    events: np.ndarray,
+    frames_log: ArrayLike,
+    frames_t_us: ArrayLike,
+    frame_t_us_out: ArrayLike,
     *,
-    width,
-    height,
-    contrast_on_ln=CONTRAST_LN,
-    contrast_off_ln=CONTRAST_LN,
-    cutoff_rad_s=COMPLEMENTARY_CUTOFF_RAD_S,
-    initial=None,
-):
+    width: int,
+    height: int,
+    contrast_on_ln: float = CONTRAST_LN,
+    contrast_off_ln: float = CONTRAST_LN,
+    cutoff_rad_s: float = COMPLEMENTARY_CUTOFF_RAD_S,
+    initial: ArrayLike | None = None,
+) -> np.ndarray:
     """Complementary filter of Scheerlinck et al. (ACCV 2018) fusing events with APS frames.
 
     dL/dt = events - cutoff_rad_s (L - L_F), with L_F = ``frames_log[k]`` from

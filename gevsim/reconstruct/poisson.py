@@ -30,6 +30,8 @@ to a slightly different solution (camera at 80x60: 2 % of the range).
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.fft
@@ -167,7 +169,7 @@ def _inverse_2d(shape: tuple[int, int]) -> np.ndarray:
 SOLVERS = {"sor": sor, "dct": dct}
 
 
-def check_method(method: str):
+def check_method(method: str) -> Callable[..., np.ndarray]:
     """The solver ``SOLVERS[method]``; ValueError with a did-you-mean for an unknown name."""
     try:
         return SOLVERS[method]
@@ -176,7 +178,7 @@ def check_method(method: str):
                          f"choose from {', '.join(sorted(SOLVERS))}") from None
 
 
-def solve_poisson(lhat: np.ndarray, *, method: str = "dct", **kw) -> np.ndarray:
+def solve_poisson(lhat: np.ndarray, *, method: str = "dct", **kw: Any) -> np.ndarray:
     """Solve Laplacian(R) = c * L_hat with the solver ``SOLVERS[method]``; R zero-centred.
 
     Keyword arguments go to the solver: ``c`` for both; ``alpha``, ``iterations``,

@@ -29,7 +29,7 @@ class ToneMap:
             raise ValueError(f"tone map needs low < high, got low={self.low!r}, high={self.high!r}")
 
     @classmethod
-    def from_ground_truth(cls, log_frames: np.ndarray, *, percentiles=(1.0, 99.0)) -> ToneMap:
+    def from_ground_truth(cls, log_frames: np.ndarray, *, percentiles: tuple[float, float] = (1.0, 99.0)) -> ToneMap:
         """Fixed by the ground-truth log frames (all of them together)."""
         values = real_array(log_frames, "log_frames", dtype=np.float64)
         if values.size == 0:

@@ -15,6 +15,7 @@ import logging
 import os
 import re
 import warnings
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,7 +61,7 @@ def llvm_version(path: str | os.PathLike) -> int | None:
     return int(match.group(1)) if match else None
 
 
-def find_libllvm(dirs=LIBRARY_DIRS) -> str | None:
+def find_libllvm(dirs: Iterable[str | os.PathLike] = LIBRARY_DIRS) -> str | None:
     """Return the newest libLLVM with major version in [16, 22] found in ``dirs``."""
     candidates = []
     for directory in list(dirs) + [f"/usr/lib/llvm-{v}/lib" for v in range(LLVM_MIN, LLVM_MAX + 1)]:
@@ -84,7 +85,7 @@ def find_libllvm(dirs=LIBRARY_DIRS) -> str | None:
 def choose_variant(
     flavour: str = "rgb",
     *,
-    env: dict | None = None,
+    env: Mapping[str, str] | None = None,
     available: tuple[str, ...] | list[str],
     cuda_ok: bool,
     libllvm: str | None,
@@ -144,6 +145,45 @@ def choose_variant(
 _ACTIVE: VariantChoice | None = None
 
 
+def _point_drjit_at_libllvm() -> str | None:
+    """Set ``DRJIT_LIBLLVM_PATH`` to a found libLLVM unless the user set it (drjit reads it when its
+    LLVM backend first initialises); returns the path found, or None."""
+    libllvm = None if os.environ.get("DRJIT_LIBLLVM_PATH") else find_libllvm()
+    if libllvm:
+        os.environ["DRJIT_LIBLLVM_PATH"] = libllvm
+    return libllvm
+
+
+def _usable(backend: str) -> bool:
+    """Whether drjit can run its ``"llvm"`` or ``"cuda"`` backend on this machine."""
+    import drjit as dr
+
+    try:
+        return bool(dr.has_backend(dr.JitBackend.LLVM if backend == "llvm" else dr.JitBackend.CUDA))
+    except Exception:  # pragma: no cover - depends on the machine
+        return False
+
+
+def activate_variant(variant: str) -> VariantChoice:
+    """Set exactly ``variant`` in Mitsuba, with no fallback (tests pin variants this way).
+
+    Raises :class:`ConfigError` saying why when this Mitsuba build lacks it or the machine cannot
+    run its backend (no libLLVM 16..22, no CUDA device). Leaves :func:`activate`'s choice alone.
+    """
+    env_path = os.environ.get("DRJIT_LIBLLVM_PATH")
+    libllvm = _point_drjit_at_libllvm() or env_path
+    import mitsuba as mi
+
+    if variant not in mi.variants():
+        raise ConfigError(f"{variant!r} is not a variant of this Mitsuba build; available: {', '.join(mi.variants())}")
+    backend = variant.split("_", 1)[0]
+    if backend in ("llvm", "cuda") and not _usable(backend):
+        why = f"drjit could not load libLLVM ({libllvm}); {FAST_HINT}" if backend == "llvm" else "no usable CUDA device"
+        raise ConfigError(f"cannot run {variant}: {why}")
+    mi.set_variant(variant)
+    return VariantChoice(variant, "requested", libllvm if backend == "llvm" else None)
+
+
 def activate(flavour: str = "rgb") -> VariantChoice:
     """Choose a variant (see :func:`choose_variant`), set it in Mitsuba and return it.
 
@@ -156,24 +196,14 @@ def activate(flavour: str = "rgb") -> VariantChoice:
         mi.set_variant(_ACTIVE.variant)
         return _ACTIVE
     env = dict(os.environ)
-    libllvm = None if env.get("DRJIT_LIBLLVM_PATH") else find_libllvm()
-    if libllvm:
-        # drjit reads this when its LLVM backend first initialises.
-        os.environ["DRJIT_LIBLLVM_PATH"] = libllvm
-    import drjit as dr
+    libllvm = _point_drjit_at_libllvm()
     import mitsuba as mi
 
-    def usable(backend) -> bool:
-        try:
-            return bool(dr.has_backend(backend))
-        except Exception:  # pragma: no cover - depends on the machine
-            return False
-
-    cuda_ok = "cuda_ad_rgb" in mi.variants() and usable(dr.JitBackend.CUDA)
+    cuda_ok = "cuda_ad_rgb" in mi.variants() and _usable("cuda")
     choice = choose_variant(
         flavour, env=env, available=tuple(mi.variants()), cuda_ok=cuda_ok, libllvm=libllvm
     )
-    if choice.variant.startswith("llvm") and not usable(dr.JitBackend.LLVM):
+    if choice.variant.startswith("llvm") and not _usable("llvm"):
         choice = VariantChoice(
             f"scalar_{flavour}",
             f"scalar fallback: drjit could not load libLLVM ({choice.libllvm}); for the fast variant {FAST_HINT}",

@@ -20,11 +20,12 @@ import json
 import logging
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 import gevsim
 from gevsim.errors import ConfigError
@@ -167,6 +168,7 @@ def render_pose(
                 stopped = "max_spp"
             elif budget_s is not None and elapsed * (1.0 + 2.0 * size / acc.spp) > budget_s:
                 stopped = "time_budget"
+    assert stopped is not None
     se_map = acc.se_ln()
     mean, noise, denoised = acc.mean(), acc.noise(), None
     if request.get("denoise"):
@@ -178,7 +180,7 @@ def render_pose(
     return mean, noise, se_map.astype(np.float32), report
 
 
-def denoise_pose(scene: MitsubaScene, acc: BatchAccumulator, request: dict):
+def denoise_pose(scene: MitsubaScene, acc: BatchAccumulator, request: dict) -> tuple[np.ndarray, np.ndarray, dict]:
     """OIDN-denoised group images of a finished render: ``(mean, noise, error percentiles)``.
 
     The guides (albedo, normal) are rendered with AUX_SPP samples; the noise
@@ -250,7 +252,7 @@ class BasisSet:
     images: np.ndarray
     waveforms: tuple[Waveform, ...]
     keys: list = field(default_factory=list)
-    render_s: np.ndarray | None = None
+    render_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     noise: np.ndarray | None = None
     quality: list = field(default_factory=list)
 
@@ -263,7 +265,7 @@ class BasisSet:
         return self.images.shape[2:]
 
     def radiance(
-        self, times_s: Sequence[float], *, exposure_s: float | None = None, flicker: bool = True
+        self, times_s: ArrayLike, *, exposure_s: float | None = None, flicker: bool = True
     ) -> np.ndarray:
         """Radiance (T, H, W, C) at ``times_s`` (averaged over ``exposure_s`` after each when given).
 
@@ -301,7 +303,7 @@ def render_basis(
     times = scene.pose_times() if times_s is None else np.asarray(times_s, float)
     groups = m.group_names
     waveforms = tuple(scene.group(g).waveform for g in groups)
-    mixtures = mixture_weights([w.value_range() for w in waveforms])
+    mixtures = mixture_weights([_value_range(w, name) for w, name in zip(waveforms, groups)])
     request = quality_request(r, mixtures, resolve_target(r, smallest_threshold_ln))
     if r.denoise:
         from gevsim.render.denoise import available
@@ -364,6 +366,14 @@ def render_basis(
         noise=np.asarray(noise, np.float32),
         quality=quality,
     )
+
+
+def _value_range(waveform: Waveform, group: str) -> tuple[float, float]:
+    """(min, max) of a light group's waveform: the corners of the lamp mixtures the noise target watches."""
+    value_range = waveform.value_range()
+    if value_range is None:
+        raise ValueError(f"the waveform of light group {group!r} gives no value range for the noise target")
+    return value_range
 
 
 def _read_cached(path: Path, groups: tuple[str, ...]):

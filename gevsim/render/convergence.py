@@ -149,10 +149,10 @@ class BatchAccumulator:
         self.spp = 0
         self.batches = 0
         self._half_spp = [0, 0]
-        self._halves = [None, None]  # sum of n_b * G_b per half, (K, H, W, C) float64
-        self._p = None  # sum n_b Y_b, (M + 1, H, W)
-        self._q = None  # sum n_b Y_b^2
-        self._c = None  # sum n_b Y_b Y_ref,b
+        self._halves: list[np.ndarray] = []  # sum of n_b * G_b per half, (K, H, W, C) float64
+        self._p: np.ndarray | None = None  # sum n_b Y_b, (M + 1, H, W)
+        self._q: np.ndarray | None = None  # sum n_b Y_b^2
+        self._c: np.ndarray | None = None  # sum n_b Y_b Y_ref,b
 
     def add(self, images: np.ndarray, luminance: np.ndarray, spp: int) -> None:
         """Add a batch: ``images`` (K, H, W, C) radiance, ``luminance`` (K, H, W), from ``spp`` samples."""
@@ -166,7 +166,7 @@ class BatchAccumulator:
         y = np.tensordot(self.mixtures, lum, axes=1)  # (M + 1, H, W)
         half = 0 if self._half_spp[0] <= self._half_spp[1] else 1
         weighted = images.astype(np.float64) * spp
-        if self._p is None:
+        if self._p is None or self._q is None or self._c is None:
             self._p, self._q, self._c = spp * y, spp * y * y, spp * y * y[-1]
             self._halves = [np.zeros_like(weighted), np.zeros_like(weighted)]
         else:
@@ -196,23 +196,24 @@ class BatchAccumulator:
 
     def halves(self) -> tuple[np.ndarray, np.ndarray]:
         """The two halves' means, (K, H, W, C) float32 each: independent estimates."""
-        return tuple((h / max(n, 1)).astype(np.float32) for h, n in zip(self._halves, self._half_spp))
+        (h0, h1), (n0, n1) = self._halves, self._half_spp
+        return (h0 / max(n0, 1)).astype(np.float32), (h1 / max(n1, 1)).astype(np.float32)
 
     def se_ln(self, metric: str | None = None) -> np.ndarray:
         """(H, W): the largest standard error over the mixtures, of ``metric`` (default: the
         accumulator's), in ln units; inf before 2 batches."""
         metric = self.metric if metric is None else metric
-        if self.batches < 2:
-            shape = self._p.shape[1:] if self._p is not None else (0, 0)
-            return np.full(shape, np.inf)
+        p, q, c = self._p, self._q, self._c
+        if self.batches < 2 or p is None or q is None or c is None:
+            return np.full(p.shape[1:] if p is not None else (0, 0), np.inf)
         n, dof = float(self.spp), self.batches - 1
-        mean = self._p / n
-        var = np.maximum(self._q - n * mean * mean, 0.0) / dof  # per-sample variance, (M + 1, H, W)
+        mean = p / n
+        var = np.maximum(q - n * mean * mean, 0.0) / dof  # per-sample variance, (M + 1, H, W)
         scale = np.abs(mean) + self.floor_rel * mean.reshape(len(mean), -1).mean(axis=1)[:, None, None]
         if metric == "absolute":
             rel_var = var / scale**2
         else:
-            cov = (self._c - n * mean * mean[-1]) / dof
+            cov = (c - n * mean * mean[-1]) / dof
             rel_var = var / scale**2 + var[-1] / scale[-1] ** 2 - 2.0 * cov / (scale * scale[-1])
         return np.sqrt(np.maximum(rel_var, 0.0) / n).max(axis=0)
 

@@ -120,8 +120,8 @@ def denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray) -> np.nda
             _check(oidn, device, "device")
             filt = oidn.oidnNewFilter(device, b"RT")
             try:
-                for name, img in ((b"color", rgb), (b"albedo", alb), (b"normal", nrm), (b"output", out)):
-                    oidn.oidnSetSharedFilterImage(filt, name, img.ctypes.data, _FORMAT_FLOAT3, w, h, 0, 0, 0)
+                for image, img in ((b"color", rgb), (b"albedo", alb), (b"normal", nrm), (b"output", out)):
+                    oidn.oidnSetSharedFilterImage(filt, image, img.ctypes.data, _FORMAT_FLOAT3, w, h, 0, 0, 0)
                 oidn.oidnSetFilter1b(filt, b"hdr", True)
                 oidn.oidnSetFilter1b(filt, b"cleanAux", True)
                 oidn.oidnCommitFilter(filt)

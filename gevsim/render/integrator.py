@@ -26,6 +26,7 @@ variants a Python loop per path would be far too slow, so
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -53,7 +54,7 @@ def _group_of(emitter, group_ptrs):
     return idx
 
 
-def render_groups(scene, groups: Sequence[Sequence], *, spp: int, seed: int, max_depth: int,
+def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int, max_depth: int,
                   rr_depth: int = 5) -> np.ndarray:
     """Render K light-group images of ``scene`` from one set of paths.
 
@@ -165,7 +166,7 @@ def render_groups(scene, groups: Sequence[Sequence], *, spp: int, seed: int, max
     return out.astype(np.float32)
 
 
-def group_emitters(scene, emitter_ids: Sequence[Sequence[str]]) -> list[list]:
+def group_emitters(scene: Any, emitter_ids: Sequence[Sequence[str]]) -> list[list]:
     """The ``mitsuba.Emitter`` objects of each group, from shape or emitter ids.
 
     An id names an emitting shape (its area emitter is taken) or a standalone

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -238,7 +239,7 @@ def load(scene: str | Path) -> SceneManifest:
         r.fail("light_groups", "at least one light group is needed")
     for name, spec in lg.items():
         groups.append(_light_group(name, spec, r))
-    seen = {}
+    seen: dict[str, str] = {}
     for g in groups:
         for e in g.emitters:
             if e in seen:
@@ -306,7 +307,7 @@ def _light_group(name: str, spec: dict, r: TomlReader) -> LightGroup:
     return LightGroup(name=str(name), emitters=tuple(emitters), waveform=waveform, emission=emission)
 
 
-def override(manifest: SceneManifest, *, source: str | None = None, **changes) -> SceneManifest:
+def override(manifest: SceneManifest, *, source: str | None = None, **changes: Any) -> SceneManifest:
     """A copy with render settings (``[render]`` keys) or ``duration_s`` replaced;
     ``None`` values are ignored. ``raw`` follows suit.
 

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 import gevsim
 from gevsim.illumination import flicker_index, percent_flicker
@@ -24,7 +25,7 @@ from gevsim.render.manifest import SceneManifest
 from gevsim.render.scene_config import resolved_config, scene_optics
 
 
-def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s: Sequence[float], *, lens: Lens,
+def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s: ArrayLike, *, lens: Lens,
                       exposure_s: float | None = None, flicker: bool = True) -> np.ndarray:
     """Focal-plane irradiance (T, H, W, C), photopic-equivalent W/m^2, at ``times_s``."""
     r = manifest.render
@@ -97,8 +98,8 @@ def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSe
             if plots:
                 from gevsim import plots as plotting
 
-                plotting.contact_sheet(frames, times, stage / "contact_sheet.png", title=manifest.name)
-                plotting.waveform_plot(basis, times, lux.reshape(len(times), -1).mean(axis=1),
+                plotting.contact_sheet(frames, times.tolist(), stage / "contact_sheet.png", title=manifest.name)
+                plotting.waveform_plot(basis, times.tolist(), lux.reshape(len(times), -1).mean(axis=1),
                                        stage / "waveform.png", title=manifest.name)
         (stage / MANIFEST).write_text(json.dumps(info, indent=2))
     return info

@@ -13,6 +13,7 @@ import hashlib
 import importlib.util
 import logging
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -52,9 +53,11 @@ def exact_count(sampler: str, spp: int) -> int:
     return spp
 
 
-def load_builder(path: Path):
+def load_builder(path: Path) -> Callable[[dict], dict]:
     """Import a scene builder file and return its ``build`` function."""
     spec = importlib.util.spec_from_file_location(f"gevsim_scene_{path.stem}", path)
+    if spec is None or spec.loader is None:
+        raise ConfigError("not an importable Python file", source=str(path))
     module = importlib.util.module_from_spec(spec)
     try:
         spec.loader.exec_module(module)
@@ -112,12 +115,16 @@ def emitter_rgb(emission: Emission, *, area_m2: float | None = None) -> tuple[fl
     from gevsim.optics import lamp_spectrum, spectrum_to_rgb
 
     if emission.radiance_w_m2_sr is not None:
-        return tuple(float(v) for v in emission.radiance_w_m2_sr)
+        r, g, b = (float(v) for v in emission.radiance_w_m2_sr)
+        return r, g, b
     luminance = emission.luminance_cd_m2
-    if luminance is None:
+    if luminance is None:  # the manifest checked: illuminance at a distance, and a spectrum
+        assert emission.illuminance_lux is not None and emission.at_m is not None and area_m2 is not None
         luminance = emission.illuminance_lux * emission.at_m**2 / area_m2
-    rgb = spectrum_to_rgb(lamp_spectrum(emission.spectrum), luminance_cd_m2=luminance)
-    return tuple(float(v) for v in np.asarray(rgb).ravel())
+    assert emission.spectrum is not None
+    r, g, b = (float(v) for v in np.asarray(spectrum_to_rgb(lamp_spectrum(emission.spectrum),
+                                                            luminance_cd_m2=luminance)).ravel())
+    return r, g, b
 
 
 class MitsubaScene:
@@ -152,11 +159,11 @@ class MitsubaScene:
         self.params = mi.traverse(self.scene)
         self._group_keys = self._find_group_keys()
         self._set_object_emission()
-        self._group_emitters = None
+        self._group_emitters: list[list] | None = None
         self._original = {k: type(self.params[k])(self.params[k]) for keys in self._group_keys.values() for k in keys}
-        self._rest = {}
-        self.centres = {}
-        self._probe = {None: self._scene_probe_points()}
+        self._rest: dict[str, tuple[str, np.ndarray]] = {}
+        self.centres: dict[int, np.ndarray] = {}
+        self._probe: dict[str | None, np.ndarray] = {None: self._scene_probe_points()}
         shapes_by_id = {s.id(): s for s in self.scene.shapes()}
         for i, motion in enumerate(manifest.motion):
             corners = []
@@ -171,8 +178,8 @@ class MitsubaScene:
                 else:
                     positions = np.array(self.params[f"{obj}.vertex_positions"], float).reshape(-1, 3)
                     self._rest[obj] = ("vertex_positions", positions)
-            corners = np.vstack(corners)
-            self.centres[i] = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+            box = np.vstack(corners)
+            self.centres[i] = 0.5 * (box.min(axis=0) + box.max(axis=0))
 
     # -- assembly ---------------------------------------------------------------
     def _assemble(self, shapes: dict) -> dict:
@@ -348,9 +355,11 @@ class MitsubaScene:
         names = self.manifest.group_names
         if self.one_pass if one_pass is None else one_pass:
             self.set_groups(None)
-            if self._group_emitters is None:
-                self._group_emitters = integrator.group_emitters(self.scene, [self.group(n).emitters for n in names])
-            return integrator.render_groups(self.scene, self._group_emitters, spp=spp, seed=seed,
+            groups = self._group_emitters
+            if groups is None:
+                groups = integrator.group_emitters(self.scene, [self.group(n).emitters for n in names])
+                self._group_emitters = groups
+            return integrator.render_groups(self.scene, groups, spp=spp, seed=seed,
                                             max_depth=self.manifest.render.max_depth)
         images = []
         for name in names:

@@ -8,8 +8,12 @@ Lengths are in metres; +y is up.
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 
 import numpy as np
+
+#: A 3-vector (position, size, RGB) as a sequence of numbers.
+Vec3 = Sequence[float]
 
 TEXTURES = ("astronaut", "brick", "camera", "coffee", "chelsea", "moon", "grass", "gravel", "rocket", "text")
 
@@ -39,7 +43,8 @@ def photo(name: str, *, albedo: float = 0.8) -> np.ndarray:
     return (albedo * srgb_to_linear(img[..., :3])).astype(np.float32)
 
 
-def noise_texture(shape=(256, 256), *, mean: float = 0.1, spread: float = 0.05, seed: int = 0) -> np.ndarray:
+def noise_texture(shape: tuple[int, int] = (256, 256), *, mean: float = 0.1, spread: float = 0.05,
+                  seed: int = 0) -> np.ndarray:
     """Smooth grey value noise (asphalt, plaster): (H, W, 3) float32 reflectance."""
     rng = np.random.default_rng(seed)
     img = np.zeros(shape)
@@ -50,7 +55,7 @@ def noise_texture(shape=(256, 256), *, mean: float = 0.1, spread: float = 0.05, 
     return np.repeat(img[..., None], 3, axis=2).astype(np.float32)
 
 
-def diffuse(reflectance) -> dict:
+def diffuse(reflectance: Vec3 | np.ndarray) -> dict:
     """Lambertian BSDF from an RGB triple or an (H, W, 3) reflectance image.
 
     Images are flipped vertically because Mitsuba maps the first image row to
@@ -80,7 +85,8 @@ def _dress(shape: dict, bsdf, emitter) -> dict:
     return shape
 
 
-def rectangle(centre, size, *, facing, bsdf=None, emitter=None, spin_deg: float = 0.0) -> dict:
+def rectangle(centre: Vec3, size: Sequence[float], *, facing: str, bsdf: dict | None = None,
+              emitter: dict | None = None, spin_deg: float = 0.0) -> dict:
     """A ``size[0]`` x ``size[1]`` rectangle at ``centre`` whose front faces ``facing``.
 
     ``facing`` is one of '+x', '-x', '+y', '-y', '+z', '-z' (the normal).
@@ -98,23 +104,24 @@ def rectangle(centre, size, *, facing, bsdf=None, emitter=None, spin_deg: float 
     return _dress(out, bsdf, emitter)
 
 
-def box(centre, size, *, bsdf=None, emitter=None) -> dict:
+def box(centre: Vec3, size: Vec3, *, bsdf: dict | None = None, emitter: dict | None = None) -> dict:
     """An axis-aligned box (Mitsuba ``cube`` mesh) of full extents ``size``."""
     out = {"type": "cube", "to_world": _T().translate(list(centre)).scale([s / 2 for s in size])}
     return _dress(out, bsdf, emitter)
 
 
-def sphere(centre, radius, *, bsdf=None, emitter=None) -> dict:
+def sphere(centre: Vec3, radius: float, *, bsdf: dict | None = None, emitter: dict | None = None) -> dict:
     out = {"type": "sphere", "center": list(centre), "radius": float(radius)}
     return _dress(out, bsdf, emitter)
 
 
-def cylinder(p0, p1, radius, *, bsdf=None, emitter=None) -> dict:
+def cylinder(p0: Vec3, p1: Vec3, radius: float, *, bsdf: dict | None = None, emitter: dict | None = None) -> dict:
     out = {"type": "cylinder", "p0": list(p0), "p1": list(p1), "radius": float(radius)}
     return _dress(out, bsdf, emitter)
 
 
-def room(width, depth, height, *, walls, floor, ceiling, centre_z: float = 0.0) -> dict:
+def room(width: float, depth: float, height: float, *, walls: dict, floor: dict, ceiling: dict,
+         centre_z: float = 0.0) -> dict:
     """Six inward-facing rectangles of a room spanning x in [-w/2, w/2], y in [0, h], z about ``centre_z``."""
     w, d, h, z = width, depth, height, centre_z
     return {

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from gevsim.render.manifest import CameraKey, Motion, SceneManifest
 
@@ -40,7 +41,7 @@ def _interp(times, values, t):
     return np.array([np.interp(t, times, values[:, i]) for i in range(values.shape[1])])
 
 
-def look_at(origin, target, up) -> np.ndarray:
+def look_at(origin: ArrayLike, target: ArrayLike, up: ArrayLike) -> np.ndarray:
     """Mitsuba's ``look_at``: camera looks along +z towards ``target``, x = up x dir."""
     origin, target, up = (np.asarray(v, float) for v in (origin, target, up))
     direction = target - origin
@@ -63,7 +64,7 @@ def camera_at(keys: tuple[CameraKey, ...], t_s: float) -> np.ndarray:
     return look_at(origin, target, up)
 
 
-def rotation(axis, angle_rad: float) -> np.ndarray:
+def rotation(axis: ArrayLike, angle_rad: float) -> np.ndarray:
     """3x3 rotation by ``angle_rad`` about ``axis`` (Rodrigues)."""
     a = np.asarray(axis, float)
     a = a / np.linalg.norm(a)
@@ -71,7 +72,7 @@ def rotation(axis, angle_rad: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle_rad) * k + (1 - math.cos(angle_rad)) * (k @ k)
 
 
-def object_at(motion: Motion, centre, t_s: float) -> np.ndarray:
+def object_at(motion: Motion, centre: ArrayLike, t_s: float) -> np.ndarray:
     """World transform T(c + d(t)) R(axis, angle(t)) T(-c) for a rigid object with rest centre ``c``."""
     times = [k.t_s for k in motion.keyframes]
     translate = _interp(times, [k.translate_m for k in motion.keyframes], t_s)
@@ -93,10 +94,11 @@ def pose_at(manifest: SceneManifest, centres: dict, t_s: float) -> Pose:
     return Pose(t_s=float(t_s), camera=camera_at(manifest.camera, t_s), objects=objects)
 
 
-def project(points, camera: np.ndarray, *, fov_deg: float, width: int, height: int) -> np.ndarray:
+def project(points: ArrayLike, camera: np.ndarray, *, fov_deg: float, width: int, height: int) -> np.ndarray:
     """Pixel coordinates of world ``points`` (N, 3) for a pinhole camera (NaN behind it)."""
     inv = np.linalg.inv(camera)
-    p = np.c_[np.asarray(points, float), np.ones(len(points))] @ inv.T
+    xyz = np.asarray(points, float)
+    p = np.c_[xyz, np.ones(len(xyz))] @ inv.T
     f_px = 0.5 * width / math.tan(math.radians(fov_deg) / 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(p[:, 2] > 1e-6, p[:, 2], np.nan)
@@ -106,7 +108,7 @@ def project(points, camera: np.ndarray, *, fov_deg: float, width: int, height: i
     return np.c_[u, v]
 
 
-def pose_times(manifest: SceneManifest, probe_points, centres: dict, *, samples: int = 400) -> np.ndarray:
+def pose_times(manifest: SceneManifest, probe_points: dict, centres: dict, *, samples: int = 400) -> np.ndarray:
     """Times of the poses to render, spaced so image motion stays under ``max_px_per_pose``.
 
     ``probe_points`` maps ``None`` to world points of the static scene (for
@@ -118,7 +120,7 @@ def pose_times(manifest: SceneManifest, probe_points, centres: dict, *, samples:
         return np.array([0.0])
     r = manifest.render
     t = np.linspace(0.0, manifest.duration_s, samples + 1)
-    tracks = []
+    tracks: list[np.ndarray] = []
     for ti in t:
         pose = pose_at(manifest, centres, ti)
         pts = [np.asarray(probe_points[None], float)]
@@ -126,10 +128,10 @@ def pose_times(manifest: SceneManifest, probe_points, centres: dict, *, samples:
             rest = np.asarray(probe_points[obj], float)
             pts.append(np.c_[rest, np.ones(len(rest))] @ mat.T[:, :3])
         tracks.append(project(np.vstack(pts), pose.camera, fov_deg=manifest.fov_deg, width=r.width, height=r.height))
-    tracks = np.array(tracks)  # (T, N, 2)
-    step = np.linalg.norm(np.diff(tracks, axis=0), axis=2)
+    track = np.array(tracks)  # (T, N, 2)
+    step = np.linalg.norm(np.diff(track, axis=0), axis=2)
     # Ignore points outside a generous margin around the image (they do not show).
-    inside = (np.abs(tracks[:-1, :, 0] - r.width / 2) < r.width) & (np.abs(tracks[:-1, :, 1] - r.height / 2) < r.height)
+    inside = (np.abs(track[:-1, :, 0] - r.width / 2) < r.width) & (np.abs(track[:-1, :, 1] - r.height / 2) < r.height)
     step = np.where(inside & np.isfinite(step), step, 0.0)
     # Worst-case image motion per time step, accumulated: poses are placed at
     # equal increments of it, so fast and slow parts of a trajectory both stay

@@ -31,6 +31,7 @@ def read_all(path):
         return {s: r.read(s) for s in r.streams}, r
 
 
+@pytest.mark.slow
 def test_outputs_and_summary(tmp_path):
     cfg = load_config(config(tmp_path, aps=True, aps_exposure_s=5e-4))
     summary = run(cfg, tmp_path / "out.h5", cache_dir=tmp_path / "cache")
@@ -55,6 +56,7 @@ def test_outputs_and_summary(tmp_path):
         assert theta.shape == (2, 24, 32)
 
 
+@pytest.mark.slow
 def test_chunking_does_not_change_the_events(tmp_path):
     a = run(load_config(config(tmp_path, chunk_steps=7, name="a.toml")), tmp_path / "a.h5", cache_dir=tmp_path / "c")
     b = run(load_config(config(tmp_path, chunk_steps=200, name="b.toml")), tmp_path / "b.h5", cache_dir=tmp_path / "c")
@@ -83,6 +85,7 @@ def test_static_scene_without_flicker_and_noise_gives_no_events(tmp_path):
     assert sum(summary.counts.values()) == 0
 
 
+@pytest.mark.slow
 def test_uniform_flicker_leaks_into_gradients_only_through_finite_bandwidth(tmp_path):
     """One lamp lights everything: with an infinitely fast ideal pixel the log image only
     shifts, so there are no gradient events while the DVS fires; with the finite,
@@ -97,6 +100,7 @@ def test_uniform_flicker_leaks_into_gradients_only_through_finite_bandwidth(tmp_
     assert slow["counts"]["gradient_events"] > 0
 
 
+@pytest.mark.slow
 def test_cli_emulate_and_frame_mode(tmp_path, capsys):
     cfg = config(tmp_path)
     assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 0
@@ -140,6 +144,7 @@ def test_config_errors_name_the_key(tmp_path):
         load_config(path)
 
 
+@pytest.mark.slow
 def test_summary_reads_back_in_windows_the_same_statistics(tmp_path, monkeypatch):
     from gevsim.emulation import summary as summary_mod
     from gevsim.events import event_probability
@@ -157,6 +162,7 @@ def test_summary_reads_back_in_windows_the_same_statistics(tmp_path, monkeypatch
             assert stats[stream]["count"] == stats[stream].count  # read-only dict access
 
 
+@pytest.mark.slow
 def test_light_overrides_need_no_rerender_and_act_linearly(tmp_path):
     base = load_config(config(tmp_path, sensor="ideal"))
     run(base, tmp_path / "a.h5", cache_dir=tmp_path / "c")
@@ -223,6 +229,7 @@ def test_hysteresis_and_rc_size_are_checked_before_rendering(tmp_path, capsys):
     assert "even width and height" in capsys.readouterr().err and not (tmp_path / "c").exists()
 
 
+@pytest.mark.slow
 def test_summary_rates_in_windows_equal_whole_stream_rates(tmp_path, monkeypatch):
     from gevsim.emulation import summary as summary_mod
     from gevsim.events import event_rates

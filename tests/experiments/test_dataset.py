@@ -94,6 +94,7 @@ def test_a_sequence_alone_equals_the_same_sequence_of_a_full_run(reference, tmp_
         assert_same_shard(shard(out, i), shard(tmp_path / "alone", i))
 
 
+@pytest.mark.slow
 def test_process_pool_and_dask_give_the_same_shards(reference, tmp_path):
     config, out, cache, _ = reference
     with make_executor("local", workers=2) as pool:
@@ -139,6 +140,7 @@ def test_resume_recomputes_only_what_is_not_finished(reference, tmp_path):
     assert finished(other, out, 0) is None
 
 
+@pytest.mark.slow
 def test_cli_resumes_and_reports(reference, tmp_path, capsys):
     config, ref, cache, _ = reference
     out = tmp_path / "out"

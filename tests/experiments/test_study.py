@@ -132,7 +132,8 @@ def test_sensor_axes_sweep_preset_parameters(tmp_path):
     """Threshold mismatch is a fixed pattern: with it, a uniform flicker (which an ideal pixel
     would pass to no gradient comparator) still makes no gradient events, since gradients of a
     shifted log image do not change whatever the thresholds; the DVS rate changes with it."""
-    sweep = 'waveform = ["sinusoid"]\nmodulation = [0.8]\nfrequency_hz = [1000.0]\nthreshold_mismatch_ln = [0.0, 0.05]\n'
+    sweep = ('waveform = ["sinusoid"]\nmodulation = [0.8]\nfrequency_hz = [1000.0]\n'
+             'threshold_mismatch_ln = [0.0, 0.05]\n')
     study = load_study(write_study(tmp_path, sweep=sweep))
     rows = run_study(study, tmp_path / "out", cache_dir=tmp_path / "c")
     assert [r["threshold_mismatch_ln"] for r in rows] == [0.0, 0.05]

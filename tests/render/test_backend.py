@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -108,3 +109,39 @@ def test_mono_without_scalar_mono_falls_back_to_rgb():
     available = tuple(v for v in ALL if v != "scalar_mono")
     c = choose_variant("mono", env={}, available=available, cuda_ok=False, libllvm=None)
     assert c.variant == "scalar_rgb" and c.fallback and "no scalar_mono" in c.reason
+
+
+def test_activate_variant_sets_exactly_that_variant_or_says_why_not():
+    """In a fresh process without libLLVM: scalar_rgb is set, llvm_ad_rgb and unknown names are ConfigErrors."""
+    code = (
+        "from gevsim.errors import ConfigError\n"
+        "from gevsim.render.backend import activate_variant\n"
+        "import mitsuba as mi\n"
+        "print(activate_variant('scalar_rgb').variant, mi.variant())\n"
+        "for name in ('llvm_ad_rgb', 'hyper_rgb'):\n"
+        "    try:\n"
+        "        activate_variant(name)\n"
+        "    except ConfigError as exc:\n"
+        "        print(str(exc).replace(' ', '_'))\n"
+    )
+    env = {**os.environ, "DRJIT_LIBLLVM_PATH": "/nonexistent/libLLVM-19.so", "CUDA_VISIBLE_DEVICES": ""}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.split()
+    assert lines[:2] == ["scalar_rgb", "scalar_rgb"]
+    assert "cannot_run_llvm_ad_rgb:_drjit_could_not_load_libLLVM" in lines[2]
+    assert "'hyper_rgb'_is_not_a_variant" in lines[3]
+
+
+@pytest.mark.slow
+def test_a_test_that_needs_the_jit_is_skipped_not_run_on_the_scalar_fallback():
+    """The conftest's variant fixtures skip where LLVM cannot load, instead of testing scalar_rgb."""
+    env = {**os.environ, "DRJIT_LIBLLVM_PATH": "/nonexistent/libLLVM-19.so", "CUDA_VISIBLE_DEVICES": ""}
+    env.pop("GEVSIM_VARIANT", None)
+    tests = Path(__file__).parents[1]
+    out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-rs",
+                          str(tests / "render" / "test_integrator.py"), "-k", "reproducible or falls_back"],
+                         env=env, capture_output=True, text=True, timeout=300, cwd=tests.parent)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "1 passed, 3 skipped" in out.stdout  # scalar_rgb runs; llvm_ad_rgb, cuda_ad_rgb, the JIT test skip
+    assert "drjit could not load libLLVM" in out.stdout

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import small
+from conftest import fast_variant, small, use_variant
 
 from gevsim.optics import luminance
 from gevsim.render import MitsubaScene
@@ -19,14 +19,21 @@ def seeded_means(render, seeds):
 
 
 @pytest.fixture(scope="module")
-def office(variant):
+def office_scene():
+    variant = fast_variant()
     sc = MitsubaScene(small("office"), variant=variant)
-    if not sc.one_pass:
-        pytest.skip(f"the one-pass integrator needs a JIT variant; {variant.variant} renders groups one by one")
+    assert sc.one_pass, f"{variant.variant} is a JIT variant: it renders all groups in one pass"
     sc.set_pose(sc.pose_at(0.0))
     return sc
 
 
+@pytest.fixture
+def office(office_scene):
+    use_variant(office_scene.variant.variant)  # a test in between may have switched variants
+    return office_scene
+
+
+@pytest.mark.slow
 def test_group_images_sum_to_the_path_tracer_within_monte_carlo_error(office):
     groups = group_emitters(office.scene, [office.group(n).emitters for n in office.manifest.group_names])
     ours, ours_se = seeded_means(lambda s: render_groups(office.scene, groups, spp=SPP, seed=s, max_depth=4).sum(0),
@@ -40,6 +47,7 @@ def test_group_images_sum_to_the_path_tracer_within_monte_carlo_error(office):
     assert np.mean(z > 4) < 0.01  # a 4-sigma excursion is rare for honest estimates
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("depth", [2, 4])
 def test_each_group_is_that_group_rendered_alone_in_expectation(office, depth):
     names = office.manifest.group_names
@@ -70,8 +78,9 @@ def test_one_pass_is_reproducible_and_seeds_are_independent(office):
     assert a.shape == (2, 48, 64, 3) and a.dtype == np.float32
 
 
-def test_render_groups_uses_one_pass_or_falls_back_per_group(variant):
+def test_render_groups_uses_one_pass_or_falls_back_per_group(variants_rgb):
     """Both paths give K images of the same shape; the scalar fallback renders them one by one."""
-    sc = MitsubaScene(small("office"), variant=variant)
+    sc = MitsubaScene(small("office"), variant=variants_rgb)
+    assert sc.one_pass == (not variants_rgb.variant.startswith("scalar"))
     imgs = sc.render_groups(spp=4, seed=1)
     assert imgs.shape == (2, 48, 64, 3) and (imgs.sum(axis=(1, 2, 3)) > 0).all()
