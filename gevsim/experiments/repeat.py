@@ -26,6 +26,7 @@ import os
 import shutil
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -34,11 +35,12 @@ from gevsim.emulation.emulators import EMULATORS
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments.study import Study, flicker_frequency_hz, run_config, run_id
 from gevsim.io import atomic_path, atomic_write_text
-from gevsim.metrics.attribution import phase_histogram
+from gevsim.metrics.attribution import PHASE_BINS, phase_histogram
 
 #: The four emulations of a repeat: name -> keyword arguments of :func:`gevsim.emulation.run`.
-VARIANTS = {"run": {}, "no_flicker": {"flicker": False}, "ideal": {"flicker": False, "noise": False},
-            "render_floor": {"noise": False}}
+VARIANTS: dict[str, dict[str, Any]] = {"run": {}, "no_flicker": {"flicker": False},
+                                       "ideal": {"flicker": False, "noise": False},
+                                       "render_floor": {"noise": False}}
 #: Variants whose per-pixel counts and phase histograms are kept (flicker maps, phase-locked estimate).
 FOLDED = ("run", "no_flicker")
 #: Alternation frequency of the render-noise floor when the swept lamp is steady.
@@ -81,7 +83,7 @@ def _fold(path: Path, stream: str, periods: dict[str, float], shape: tuple[int, 
 
     h, w = shape
     per_pixel = np.zeros(h * w, np.int64)
-    phases = {g: 0 for g in periods}
+    phases = {g: np.zeros(PHASE_BINS, np.int64) for g in periods}
     with EventReader(path) as r:
         for start in range(0, int(r.t_end_us) + 1, WINDOW_US):
             ev = r.read(stream, start, start + WINDOW_US)
@@ -125,19 +127,19 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     m = setup.manifest
     h, w = m.render.height, m.render.width
     periods = {g: wf.period_s for g, wf in zip(m.group_names, setup.waveforms) if wf.period_s}
-    counts, folded, stats = {}, {}, None
+    counts: dict[str, dict[str, int]] = {}
+    folded: dict[str, dict[str, dict]] = {}
     for name, kw in VARIANTS.items():
         use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" \
             else setup
         info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
         counts[name] = dict(info.counts)
         if name == "run":
-            stats = summarize(folder / "run.h5")
-            summary = info
+            stats, summary = summarize(folder / "run.h5"), info
         if name in FOLDED:
             folded[name] = {e: _fold(folder / f"{name}.h5", EMULATORS[e].stream, periods, (h, w))
                             for e in study.base["emulators"]}
-    record = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
+    record: dict[str, Any] = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
               "width": w, "height": h, "duration_s": summary.duration_s, "steps": summary.steps,
               "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts,
               "event_probability": {e: stats[EMULATORS[e].stream].event_probability
@@ -156,14 +158,16 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
             f, amp = event_spectrum(r.read("events")["t"] * 1e-6, summary.duration_s)
         record["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
     mean_basis = setup.current_basis.mean(axis=0)  # (K, H, W), A per unit waveform
-    data = {"mean_current_a": mean_basis.sum(axis=0),
+    assert setup.chip_lux_per_a is not None  # prepare() sets it
+    data: dict[str, Any] = {
+            "mean_current_a": mean_basis.sum(axis=0),
             "chip_lux": np.tensordot(setup.chip_lux_per_a, mean_basis, axes=1),
             "dominant_group": np.argmax(mean_basis, axis=0).astype(np.int16),
             "group_names": np.array(m.group_names)}
     for variant, per_emulator in folded.items():
-        for e, f in per_emulator.items():
-            data[f"pixels/{variant}/{e}"] = f["pixels"].astype(np.int32)
-            for g, hist in f["phases"].items():
+        for e, fold in per_emulator.items():
+            data[f"pixels/{variant}/{e}"] = fold["pixels"].astype(np.int32)
+            for g, hist in fold["phases"].items():
                 data[f"phases/{variant}/{e}/{g}"] = hist
     with atomic_path(arrays) as tmp:
         with open(tmp, "wb") as fh:

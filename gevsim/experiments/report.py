@@ -106,7 +106,7 @@ def answer(rows: list[dict], study: Study) -> list[str]:
               f"({_label(worst, study)}).")
     third = ""
     methods = [m for m in _methods(rows) if any(np.isfinite(r[f"{m}_ssim"]) for r in rows)]
-    by_stream = {}
+    by_stream: dict[str, list[str]] = {}
     for m in methods:
         stream = "gradient" if METHODS[m].emulator.startswith("gradient") else "brightness"
         by_stream.setdefault(stream, []).append(m)
@@ -157,7 +157,7 @@ def map_findings(rows: list[dict]) -> list[str]:
     out = []
     for e in [e for e in _emulators(rows) if e.startswith("gradient") or e == "dvs"]:
         sel = [r for r in rows if r.get(f"{e}_flicker_border_share") is not None
-               and interval_of(r, f"{e}_flicker_per_pixel_s") and interval_of(r, f"{e}_flicker_per_pixel_s").low > 0]
+               and (iv := interval_of(r, f"{e}_flicker_per_pixel_s")) is not None and iv.low > 0]
         if not sel:
             continue
         border = np.median([r[f"{e}_flicker_border_share"] for r in sel])

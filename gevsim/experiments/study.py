@@ -307,8 +307,9 @@ def collect(study: Study, out: str | os.PathLike) -> list[dict]:
     rows = []
     for params in study.runs():
         rid = run_id(study, params)
-        records = [finished_repeat(out, rid, r) for r in range(study.base["repeats"])]
-        if any(r is None for r in records):
+        found = [finished_repeat(out, rid, r) for r in range(study.base["repeats"])]
+        records = [r for r in found if r is not None]
+        if len(records) < len(found):
             raise ConfigError(f"run {rid} has unfinished repeats; run the study again to finish them",
                               source=str(out))
         arrays = []

@@ -9,7 +9,9 @@ is drawn to the edge of the axes with an arrow.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,11 +40,17 @@ AXIS_UNITS = {
 }
 
 
-def x_axis(study: Study) -> str | None:
-    return study.report.get("x") or next(iter(study.axes), None)
+def x_axis(study: Study) -> str:
+    """The swept axis on the x axis: ``[report] x``, else the first sweep axis ("" for none)."""
+    return str(study.report.get("x") or next(iter(study.axes), ""))
 
 
-def x_value(row: dict, x: str):
+def axis_label(x: str) -> str:
+    """The x axis's label in physical units."""
+    return AXIS_UNITS[x][0] if x in AXIS_UNITS else x
+
+
+def x_value(row: dict, x: str) -> Any:
     """The plotted x value of a row: the physical quantity of the swept axis (e.g. lux for light_scale)."""
     key = AXIS_UNITS.get(x, (x, None))[1]
     value = row.get(key) if key else row.get(x)
@@ -51,7 +59,7 @@ def x_value(row: dict, x: str):
     return value
 
 
-def series_labels(study: Study) -> tuple[list[str], callable]:
+def series_labels(study: Study) -> tuple[list[str], Callable[[dict], str]]:
     """The axes other than x that vary (``lines`` first), and a function naming a row's series."""
     x = x_axis(study)
     others = [a for a in study.axes if a != x and len(study.axes[a]) > 1]
@@ -74,8 +82,9 @@ def _xy(rows: list[dict], x: str):
         numeric, [str(vals[i]) for i in order]
 
 
-def errorbars(ax, xs, rows: list[dict], key: str, *, color=None, marker="o", label=None, offset=1.0,
-              linestyle="-", log=True, fill="full"):
+def errorbars(ax: Any, xs: Sequence[float], rows: list[dict], key: str, *, color: str | None = None,
+              marker: str = "o", label: str | None = None, offset: float = 1.0, linestyle: str = "-",
+              log: bool = True, fill: str = "full") -> Any:
     """Points with their interval (``key``, ``key_low``, ``key_high``); on a log axis, an interval end
     at or below zero or infinite is drawn to the edge with an arrow."""
     ivs = [interval_of(r, key) for r in rows]
@@ -104,7 +113,7 @@ def errorbars(ax, xs, rows: list[dict], key: str, *, color=None, marker="o", lab
     return line
 
 
-def open_ends(ax) -> None:
+def open_ends(ax: Any) -> None:
     """Draw the open ends of intervals (to -inf / +inf, or to <= 0 on a log axis) as lines to the edge
     of the final axes with an arrowhead there."""
     ends = ax.__dict__.pop("_open_ends", [])
@@ -138,7 +147,7 @@ def _log_x(rows, x) -> bool:
     return bool(vals) and min(vals) > 0 and max(vals) / min(vals) >= 10
 
 
-def headline(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str] | None:
+def headline(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, str] | None:
     """Rejection ratio (DVS / gradient flicker-induced events) with Fieller intervals against the swept axis."""
     if "flicker_rejection_ratio" not in rows[0]:
         return None
@@ -150,7 +159,8 @@ def headline(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, st
     values = [r[k] for r in rows for k in ("flicker_rejection_ratio", "flicker_rejection_ratio_low")
               if np.isfinite(r.get(k, math.nan))]
     symlog = any(v <= 0 for v in values)  # flicker removed gradient events somewhere: show the sign
-    numeric, xs, labels, bound_label = True, [], [], "lower bound (gradient rate not distinguishable from zero)"
+    numeric, xs, labels = True, [], []
+    bound_label: str | None = "lower bound (gradient rate not distinguishable from zero)"
     for k, group in enumerate(groups):
         sel, xs, numeric, labels = _xy([r for r in rows if label(r) == group], x)
         off = spread[k] if numeric else 1.0
@@ -168,7 +178,7 @@ def headline(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, st
     else:
         ax.set_yscale("log")
     ax.set_ylabel("DVS / gradient flicker-induced events")
-    _finish(ax, AXIS_UNITS.get(x, (x,))[0], numeric, xs, labels, _log_x(rows, x))
+    _finish(ax, axis_label(x), numeric, xs, labels, _log_x(rows, x))
     ax.set_title(f"{study.name}: flicker rejection of gradient events\n(95 % Fieller intervals, {rows[0]['repeats']} "
                  "paired repeats; < 0: flicker removes gradient events)", fontsize=10)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, borderaxespad=0)
@@ -182,7 +192,7 @@ def headline(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, st
                             "gradient rate is not distinguishable from zero; dashed: no rejection.")
 
 
-def rates(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str]:
+def rates(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, str]:
     """Flicker-induced events per emulator (counterfactual, filled; phase-locked RMS, open) with
     intervals and the render-noise floor, one panel per series."""
     x = x_axis(study)
@@ -209,7 +219,7 @@ def rates(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str]:
             floor = [r.get(f"{e}_render_floor_per_pixel_s", math.nan) for r in sel]
             ax.plot(np.asarray(xs, float) * shift, floor, ":", color=c, alpha=0.8, label=f"{e} render-noise floor")
         ax.set_yscale("symlog", linthresh=1.0)
-        _finish(ax, AXIS_UNITS.get(x, (x,))[0], numeric, xs, labels, log_x)
+        _finish(ax, axis_label(x), numeric, xs, labels, log_x)
         ax.set_title(group, fontsize=9)
     axes[0, 0].set_ylabel("events / pixel / s")
     handles, names = axes[0, 0].get_legend_handles_labels()
@@ -226,7 +236,7 @@ def rates(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str]:
                                 "no subtraction); dotted: the render-noise floor of the same stream.")
 
 
-def quality(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str] | None:
+def quality(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, str] | None:
     methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
     if not methods:
         return None
@@ -242,7 +252,7 @@ def quality(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str
                 continue
             errorbars(ax, xs, sel, f"{m}_ssim", label=f"{m} ({group})" if len(groups) > 1 else m, log=False)
     ax.set_ylabel("SSIM vs flicker-free reference")
-    _finish(ax, AXIS_UNITS.get(x, (x,))[0], numeric, xs, labels, _log_x(rows, x))
+    _finish(ax, axis_label(x), numeric, xs, labels, _log_x(rows, x))
     ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
     fig.tight_layout()
     from gevsim.plots import save_figure
@@ -252,7 +262,7 @@ def quality(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str
                            "repeats with 95 % t intervals.")
 
 
-def spectrum(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, str] | None:
+def spectrum(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, str] | None:
     with_spec = [row for row in rows if "dvs_spectrum" in row]
     if not with_spec:
         return None
@@ -275,7 +285,7 @@ def spectrum(folder: Path, study: Study, rows: list[dict], plt) -> tuple[str, st
     return "spectrum.png", "Spectrum of the DVS event rate (first repeat); dotted lines at harmonics of the flicker."
 
 
-def pareto(folder: Path, rows: list[dict], plt) -> tuple[str, str] | None:
+def pareto(folder: Path, rows: list[dict], plt: Any) -> tuple[str, str] | None:
     methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
     stream_of = {m: METHODS[m].emulator for m in methods}
     points = [(row[f"{stream_of[m]}_events_per_s"], row[f"{m}_ssim"], m) for row in rows for m in methods
@@ -312,7 +322,7 @@ def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]
     return front
 
 
-def flicker_maps(folder: Path, study: Study, row: dict, maps: dict, index: int, plt) -> tuple[str, str]:
+def flicker_maps(folder: Path, study: Study, row: dict, maps: dict, index: int, plt: Any) -> tuple[str, str]:
     """One run's panel: the scene's chip illuminance, the dominant light group, and each emulator's
     flicker-induced events per pixel (mean over repeats; diverging colours, negative where flicker
     removed events)."""

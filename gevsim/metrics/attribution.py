@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import stats
 
 
@@ -59,7 +60,7 @@ def _check_confidence(confidence: float) -> None:
         raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
 
 
-def mean_interval(values, *, confidence: float = 0.95) -> Interval:
+def mean_interval(values: ArrayLike, *, confidence: float = 0.95) -> Interval:
     """Student t interval of the mean of R independent paired differences (R >= 2).
 
     With one value the interval is unknown: (-inf, inf), method ``"t (1 repeat)"``.
@@ -76,7 +77,7 @@ def mean_interval(values, *, confidence: float = 0.95) -> Interval:
     return Interval(mean, mean - half, mean + half, confidence, int(x.size), "t")
 
 
-def ratio_interval(numerator, denominator, *, confidence: float = 0.95) -> Interval:
+def ratio_interval(numerator: ArrayLike, denominator: ArrayLike, *, confidence: float = 0.95) -> Interval:
     """Fieller's interval for mean(numerator) / mean(denominator) from R paired repeats.
 
     The pairs may be correlated (same seeds): their covariance is used. When
@@ -129,7 +130,7 @@ class PhaseLocked:
 PHASE_BINS = 512
 
 
-def phase_histogram(t_s, *, period_s: float, bins: int = PHASE_BINS) -> np.ndarray:
+def phase_histogram(t_s: ArrayLike, *, period_s: float, bins: int = PHASE_BINS) -> np.ndarray:
     """Event counts (int64, ``bins``) over the lamp phase [0, 1) of times ``t_s`` (s).
 
     Histograms of repeats of the same run add: fold each, sum, then call
@@ -160,7 +161,7 @@ def _signed_root(p):
     return np.sign(p) * np.sqrt(np.abs(p))
 
 
-def phase_locked_rate(t_s, *, period_s: float, duration_s: float, n_pixels: int, harmonics: int = 4,
+def phase_locked_rate(t_s: ArrayLike, *, period_s: float, duration_s: float, n_pixels: int, harmonics: int = 4,
                       confidence: float = 0.95, n_boot: int = 400, seed: int = 0) -> PhaseLocked:
     """Rate modulation locked to a lamp of period ``period_s``, from event times ``t_s`` (s).
 
@@ -184,7 +185,7 @@ def phase_locked_rate(t_s, *, period_s: float, duration_s: float, n_pixels: int,
                                        n_boot=n_boot, seed=seed)
 
 
-def phase_locked_from_histogram(counts, *, duration_s: float, n_pixels: int, harmonics: int = 4,
+def phase_locked_from_histogram(counts: ArrayLike, *, duration_s: float, n_pixels: int, harmonics: int = 4,
                                 confidence: float = 0.95, n_boot: int = 400, seed: int = 0) -> PhaseLocked:
     """:func:`phase_locked_rate` from a phase histogram (:func:`phase_histogram`, or the sum of
     several repeats' histograms with ``duration_s`` their summed duration). The bootstrap

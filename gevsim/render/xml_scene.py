@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import Any
 
 from gevsim.errors import ConfigError
 
@@ -58,7 +59,7 @@ def xml_inputs(path: str | Path, *, _seen: set[Path] | None = None) -> list[Path
     return out
 
 
-def load_xml_objects(mi, path: Path, options: dict) -> dict:
+def load_xml_objects(mi: Any, path: Path, options: dict) -> dict:
     """Load a Mitsuba XML scene and return its shapes and shape-less emitters by id, as the
     objects a Python builder's ``build(options)`` would describe."""
     try:
@@ -74,7 +75,7 @@ def load_xml_objects(mi, path: Path, options: dict) -> dict:
     return objects
 
 
-def object_emits(obj) -> bool:
+def object_emits(obj: Any) -> bool:
     """Whether a loaded Mitsuba object emits light (an emitter, or a shape with one)."""
     is_emitter = getattr(obj, "is_emitter", None)
     return bool(is_emitter()) if callable(is_emitter) else True
