@@ -219,6 +219,11 @@ def _emulate_frames(args: argparse.Namespace) -> int:
         source = args.frames
     from gevsim.emulation.emulators import FRAME_EMULATORS
 
+    given = [flag for flag, value in (("--width", args.width), ("--height", args.height),
+                                      ("--duration", args.duration)) if value is not None]
+    if given:
+        raise ConfigError(f"frame mode takes its size and times from the frames; drop {', '.join(given)}",
+                          key=given[0])
     names = _emulator_names(args, FRAME_EMULATORS)
     if args.seed is not None and args.threshold_mismatch is None:
         raise ConfigError("--seed draws the DVS threshold mismatch: give --threshold-mismatch LN as well",

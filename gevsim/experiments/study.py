@@ -76,6 +76,7 @@ from gevsim.experiments.executors import run_all
 from gevsim.io import atomic_path
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
+from gevsim.timebase import TimeGrid
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
               "frame_rate_hz", "seed", "methods", "render", "chunk_steps", "repeats")
@@ -84,6 +85,8 @@ SENSOR_AXES = ("threshold_mismatch_ln", "cutoff_hz", "max_cutoff_hz", "dark_curr
                "pixel_pitch_m", "fill_factor", "refractory_s", "threshold_on_ln", "threshold_off_ln")
 AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicker_scale", "scene", "sensor",
         "thresholds_ln", "hysteresis_ln") + SENSOR_AXES
+#: A study's time grid unless its [study] table says otherwise: 20 ms in 20 us steps, frames at 500 Hz.
+STUDY_TIME = TimeGrid(duration_s=0.02, step_s=2e-5, frame_rate_hz=500.0)
 #: Repeats (noise seeds) per run when ``[study] repeats`` is not given.
 DEFAULT_REPEATS = 3
 WAVEFORMS = ("native", "pwm", "sinusoid", "fluorescent", "sodium_hid", "incandescent", "dc")
@@ -160,12 +163,12 @@ def load_study(path: str | Path) -> Study:
     for key in ("x", "lines"):
         if key in rep and rep[key] not in sweep:
             r.fail(f"report.{key}", f"{rep[key]!r} is not a sweep axis{suggest(str(rep[key]), sweep)}")
+    grid = TimeGrid.from_section(st, source=src, where="study", base=STUDY_TIME)
+    if not grid.frame_rate_hz > 0:  # reconstructions are scored at the ground-truth frames
+        r.fail("study.frame_rate_hz", f"must be > 0 (frames score the reconstructions), got {grid.frame_rate_hz}")
     base = {"scene": st["scene"], "sensor": st.get("sensor", "davis346"), "emulators": list(emulators),
             "flicker_group": st["flicker_group"], "seed": r.number(st, "seed", "study", 0, minimum=0, integer=True),
-            "duration_s": float(r.number(st, "duration_s", "study", 0.02, positive=True)),
-            "step_s": float(r.number(st, "step_s", "study", 2e-5, positive=True)),
-            "frame_rate_hz": float(r.number(st, "frame_rate_hz", "study", 500.0, positive=True)),
-            "chunk_steps": r.number(st, "chunk_steps", "study", 256, positive=True, integer=True),
+            **dataclasses.asdict(grid),
             "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {})),
             "repeats": r.number(st, "repeats", "study", DEFAULT_REPEATS, positive=True, integer=True)}
     return Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
