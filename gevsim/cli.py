@@ -442,7 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=cmd_render)
 
     e = sub.add_parser("emulate", help="emulate events: a scene (CONFIG.toml) or a frame sequence")
-    e.add_argument("config", nargs="?", help="emulation config (see gevsim/emulation/config.py)")
+    e.add_argument("config", nargs="?", help="emulation config (keys: docs/config.md)")
     e.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
     e.add_argument("--frames", metavar="DIR", help="frame mode: a folder of images (+ timestamps.txt or --fps)")
     e.add_argument("--evreal", metavar="DIR", help="frame mode: an EVREAL sequence folder")
@@ -484,7 +484,7 @@ def build_parser() -> argparse.ArgumentParser:
     x.set_defaults(func=cmd_export)
 
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
-    d.add_argument("config", help="dataset config (see gevsim/experiments/dataset.py)")
+    d.add_argument("config", help="dataset config (keys: docs/config.md)")
     d.add_argument("--out", required=True, help="output folder; finished sequences in it are kept")
     _executor_options(d)
     _run_overrides(d)
@@ -494,7 +494,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("study", help="run (or resume) a study: sweeps with repeats and counterfactuals, intervals, "
                                      "plots and a report")
-    s.add_argument("config", help="a study config (experiments/*.toml)")
+    s.add_argument("config", help="a study config (experiments/*.toml; keys: docs/config.md)")
     s.add_argument("--out", required=True, help="study folder (runs/ inside makes reruns resume)")
     s.add_argument("--repeats", type=_positive_int, metavar="R",
                    help="noise seeds per run (default: [study] repeats); more repeats reuse the finished ones")

@@ -1,5 +1,7 @@
 """The emulation config: which scene, sensor, emulators, time grid and outputs.
 
+Every key, its unit, default and range: docs/config.md (the reference of every config file).
+
 ```toml
 [emulation]
 scene = "office"               # built-in scene or manifest path (relative to this file)
