@@ -132,19 +132,15 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def _emulator_names(args: argparse.Namespace, choices=None) -> tuple[str, ...] | None:
     """``--emulators a,b`` as registry names (None when not given); unknown names are a ConfigError."""
-    from gevsim.emulation.emulators import EMULATORS, check_emulator
+    from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 
     if args.emulators is None:
         return None
-    names = tuple(dict.fromkeys(n.strip() for n in args.emulators.split(",") if n.strip()))
-    if not names:
-        raise ConfigError("name at least one emulator", key="--emulators")
-    for name in names:
-        try:
-            check_emulator(name, tuple(choices or EMULATORS))
-        except ValueError as exc:
-            raise ConfigError(str(exc), key="--emulators") from None
-    return names
+    try:
+        return check_emulator_list([n.strip() for n in args.emulators.split(",") if n.strip()],
+                                   tuple(choices or EMULATORS))
+    except ValueError as exc:
+        raise ConfigError(str(exc), key="--emulators") from None
 
 
 def _render_overrides(args: argparse.Namespace) -> dict:

@@ -46,7 +46,7 @@ from pathlib import Path
 
 from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
-from gevsim.emulation.emulators import EMULATORS, check_emulator
+from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys
 from gevsim.render.quality import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -126,14 +126,10 @@ def load_config(path: str | Path) -> EmulationConfig:
         r.fail("emulation.sensor", f"expected a preset name or path, got {sensor!r}")
     if sensor.endswith(".toml") and not Path(sensor).is_absolute():
         sensor = str((path.parent / sensor).resolve())
-    emulators = em.get("emulators", list(EMULATORS))
-    if not isinstance(emulators, list) or not emulators:
-        r.fail("emulation.emulators", f"expected a non-empty list drawn from {list(EMULATORS)}, got {emulators!r}")
-    for name in emulators:
-        try:
-            check_emulator(name)
-        except ValueError as exc:
-            r.fail("emulation.emulators", str(exc))
+    try:
+        emulators = check_emulator_list(em.get("emulators", list(EMULATORS)))
+    except ValueError as exc:
+        r.fail("emulation.emulators", str(exc))
     render = r.table(raw, "render")
     check_render_overrides(render, r, "render")
     grad = r.table(raw, "gradient")

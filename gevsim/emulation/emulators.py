@@ -24,7 +24,7 @@ from gevsim.events import BrightnessEmulator, CenterSurroundEmulator, GradientEm
 from gevsim.pixel.params import EventParams
 
 __all__ = ["APS_READ_SEED", "APS_SEED", "EMULATORS", "FRAME_EMULATORS", "PHOTORECEPTOR_SEED", "SEED_SLOTS",
-           "STREAMS", "Emulator", "check_emulator", "make_emulator"]
+           "STREAMS", "Emulator", "check_emulator", "check_emulator_list", "make_emulator"]
 
 #: Slots of ``SeedSequence(seed).spawn(SEED_SLOTS)`` used outside the emulators.
 PHOTORECEPTOR_SEED = 0
@@ -126,6 +126,18 @@ def check_emulator(name: str, choices: Sequence[str] = tuple(EMULATORS)) -> Emul
     if not isinstance(name, str) or name not in choices:
         raise ValueError(f"unknown emulator {name!r}{suggest(str(name), choices)}; choose from {', '.join(choices)}")
     return EMULATORS[name]
+
+
+def check_emulator_list(value: Any, choices: Sequence[str] = tuple(EMULATORS)) -> tuple[str, ...]:
+    """A non-empty list of emulator names from ``choices`` as a tuple (duplicates dropped); ValueError
+    (with a did-you-mean) naming what is wrong otherwise."""
+    if isinstance(value, tuple):
+        value = list(value)
+    if not isinstance(value, list) or not value:
+        raise ValueError(f"expected a non-empty list drawn from {list(choices)}, got {value!r}")
+    for name in value:
+        check_emulator(name, choices)
+    return tuple(dict.fromkeys(value))
 
 
 def make_emulator(name: str, shape: tuple[int, int], *, config: Any, preset: Any, rng: np.random.Generator) -> Any:

@@ -69,7 +69,7 @@ import numpy as np
 
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
-from gevsim.emulation.emulators import EMULATORS, check_emulator
+from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.experiments.executors import run_all
@@ -124,12 +124,10 @@ def load_study(path: str | Path) -> Study:
                                        and all(isinstance(v, str) for v in group.values()))):
         r.fail("study.flicker_group", "missing: the light group whose waveform the sweep changes "
                                       "(a name, or a table scene = group)")
-    emulators = st.get("emulators", list(EMULATORS))
-    for e in emulators:
-        try:
-            check_emulator(e)
-        except ValueError as exc:
-            r.fail("study.emulators", str(exc))
+    try:
+        emulators = check_emulator_list(st.get("emulators", list(EMULATORS)))
+    except ValueError as exc:
+        r.fail("study.emulators", str(exc))
     sweep = r.table(raw, "sweep")
     check_keys(sweep, AXES, source=src, where="sweep")
     for axis, values in sweep.items():
