@@ -17,7 +17,9 @@ against the flicker-free reference.
 Each (run, repeat) is one job (:mod:`gevsim.experiments.repeat`), run here or by
 an executor (:mod:`gevsim.experiments.executors`); each writes
 ``runs/<id>/r<k>.json`` last and atomically, so a rerun skips finished jobs and
-interrupted studies resume.
+interrupted studies resume. The run id hashes the run's settings, the contents of
+its scene's files and the gevsim version (:func:`run_id`): after an edit of the
+scene (its manifest, builder or a texture) or an upgrade, a rerun computes anew.
 
 ```toml
 [study]
@@ -67,6 +69,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim import __version__
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator
@@ -198,13 +201,18 @@ def waveform_spec(params: dict) -> dict | None:
     return {"type": "dc"}
 
 
-def run_config(study: Study, params: dict) -> EmulationConfig:
-    b = study.base
-    name = params.get("scene", b["scene"])
-    group = flicker_group(study, name)
-    scene = name
+def run_scene(study: Study, params: dict) -> str:
+    """The scene of a run: a built-in name, or a manifest path (relative ones resolved from the study file)."""
+    scene = params.get("scene", study.base["scene"])
     if scene.endswith(".toml") and not Path(scene).is_absolute():
         scene = str((Path(study.source).parent / scene).resolve())
+    return scene
+
+
+def run_config(study: Study, params: dict) -> EmulationConfig:
+    b = study.base
+    group = flicker_group(study, params.get("scene", b["scene"]))
+    scene = run_scene(study, params)
     wave = waveform_spec(params)
     cfg = EmulationConfig(
         scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]), seed=b["seed"],
@@ -237,9 +245,14 @@ def flicker_frequency_hz(study: Study, params: dict, cfg: EmulationConfig) -> fl
 
 def run_id(study: Study, params: dict) -> str:
     """Identity of a run: its base settings and parameters (not the number of repeats, so a study given
-    more repeats keeps the finished ones)."""
+    more repeats keeps the finished ones), the contents of every file its scene is made of (manifest,
+    builder, textures: :func:`gevsim.render.inputs.scene_digest`) and the gevsim version. A rerun after
+    any of them changed computes the run again."""
+    from gevsim.render.inputs import scene_digest
+
     base = {k: v for k, v in study.base.items() if k != "repeats"}
-    payload = json.dumps({"base": base, "params": params}, sort_keys=True, default=str)
+    payload = json.dumps({"base": base, "params": params, "scene_sha256": scene_digest(run_scene(study, params)),
+                          "gevsim": __version__}, sort_keys=True, default=str)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 

@@ -8,7 +8,8 @@ or a fixed ``spp`` is reached. Radiance at time t is
 between the two poses around t.
 
 Each pose is cached as one float32 EXR (every group's image, its noise sample
-and the per-pixel ln error map) named by a hash of the scene content, pose,
+and the per-pixel ln error map) named by a hash of the scene content (with every
+file its builder loads: :mod:`gevsim.render.inputs`), pose,
 groups, seed, sampler and variant. Quality is recorded in the file, not in the
 name: a cached render that meets a request serves it (:func:`serves`).
 """
@@ -73,6 +74,7 @@ def cache_key(scene: MitsubaScene, pose: Pose) -> str:
     r = scene.manifest.render
     payload = {
         "scene": content_hash(scene.manifest),
+        "inputs": scene.inputs_digest,  # files the builder loads (textures, meshes, helper modules)
         "pose": pose.key(),
         "groups": list(scene.manifest.group_names),
         "seed": r.seed,

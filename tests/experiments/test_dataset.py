@@ -9,6 +9,9 @@ import numpy as np
 import pytest
 import tomli_w
 
+from conftest import textured_scene
+
+import gevsim.experiments.dataset as dataset_mod
 from gevsim.cli import main
 from gevsim.errors import ConfigError
 from gevsim.experiments.dataset import finished, generate, load_dataset_config, sequence_parameters
@@ -188,3 +191,22 @@ def test_cli_bad_config_exits_2_without_traceback(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "dataset.sequences" in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_an_edited_scene_file_or_another_version_redoes_the_sequence(tmp_path, monkeypatch):
+    scene = textured_scene(tmp_path / "scene")
+    config = load_dataset_config(write_config(tmp_path, sequences=1, scenes=[str(scene)], evreal=False,
+                                              sensors=["davis346"]))
+    out = tmp_path / "out"
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 1
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 0
+    with EventReader(shard(out, 0)) as r:
+        before = r.frames("log_photocurrent")[0]
+    textured_scene(tmp_path / "scene", card=0.05, backdrop=0.05)
+    assert finished(config, out, 0) is None
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 1
+    with EventReader(shard(out, 0)) as r:
+        assert r.frames("log_photocurrent")[0].mean() < before.mean() - 1.0  # darker textures: ln(20x) lower
+    assert finished(config, out, 0) is not None
+    monkeypatch.setattr(dataset_mod, "__version__", "999.0")
+    assert finished(config, out, 0) is None
