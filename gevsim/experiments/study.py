@@ -70,6 +70,7 @@ from pathlib import Path
 import numpy as np
 
 from gevsim import __version__
+from gevsim._validate import FieldError
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator
@@ -78,6 +79,7 @@ from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.io import atomic_path
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
+from gevsim.timebase import TimeGrid
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
               "frame_rate_hz", "seed", "methods", "render", "chunk_steps", "repeats")
@@ -169,6 +171,11 @@ def load_study(path: str | Path) -> Study:
             "chunk_steps": r.number(st, "chunk_steps", "study", 256, positive=True, integer=True),
             "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {})),
             "repeats": r.number(st, "repeats", "study", DEFAULT_REPEATS, positive=True, integer=True)}
+    try:  # the time grid's own checks (whole steps, at least one clock tick), before any work
+        TimeGrid(**{k: base[k] for k in ("duration_s", "step_s", "chunk_steps", "frame_rate_hz")}).steps(
+            base["duration_s"])
+    except FieldError as err:
+        r.fail(f"study.{err.field}", str(err))
     return Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
                  text=path.read_text(), description=str(st.get("description", "")))
 

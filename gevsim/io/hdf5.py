@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
@@ -214,13 +215,20 @@ class EventWriter:
             obj.attrs[key] = value
 
     # -- finishing -------------------------------------------------------------------
-    def close(self, t_end_us: int | None = None) -> None:
-        """Finalise ``ms_to_idx``, mark the file complete and rename it onto ``path``."""
+    def close(self, t_end_us: int | None = None, *, before_commit: Callable[[Path], object] | None = None) -> None:
+        """Finalise ``ms_to_idx``, mark the file complete and rename it onto ``path``.
+
+        ``before_commit(tmp)`` is called with the finished, closed file under its temporary name before
+        the rename: whatever else must succeed for the output to count (reading it back, a summary) runs
+        there, so if it raises an earlier file at ``path`` is left as it was.
+        """
         if self.closed:
             return
         try:
             self._finalise(self._t_end_us if t_end_us is None else int(t_end_us))
             self._file.close()
+            if before_commit is not None:
+                before_commit(self._tmp)
             self._stage.commit()
         except BaseException:
             self.abort()

@@ -142,6 +142,17 @@ def test_malformed_study_config_exits_2(tmp_path, capsys, sweep, extra, text):
     assert text in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("grid, text", [("duration_s = 1e-9\nstep_s = 1e-10", "study.duration_s: duration_s = 1e-09 "
+                                                                           "is shorter than 1 us"),
+                                        ("duration_s = 0.003\nstep_s = 7e-4", "study.step_s: the duration")])
+def test_a_bad_time_grid_fails_before_any_work(tmp_path, capsys, grid, text):
+    cfg = write_study(tmp_path)
+    cfg.write_text(cfg.read_text().replace("duration_s = 0.003\nstep_s = 5e-5", grid))
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert text in err and str(cfg) in err and not (tmp_path / "o").exists()
+
+
 def test_unknown_flicker_group_fails_before_rendering(tmp_path, capsys):
     cfg = write_study(tmp_path)
     cfg.write_text(cfg.read_text().replace('flicker_group = "lamp"', 'flicker_group = "lamps"'))
