@@ -46,7 +46,7 @@ from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
-from gevsim.io import EventReader, atomic_write_text, export_evreal
+from gevsim.io import EventReader, atomic_write_text, export_evreal, sweep_stale
 from gevsim.reconstruct.tonemap import ToneMap
 from gevsim.render.quality import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -293,6 +293,7 @@ def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.
     """
     start = time.perf_counter()
     out = Path(out_dir)
+    sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     indices = list(dict.fromkeys(range(config.sequences) if indices is None else indices))
     for i in indices:
         sequence_parameters(config, i)  # validates the index

@@ -76,7 +76,7 @@ from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
-from gevsim.io import atomic_path
+from gevsim.io import atomic_path, sweep_stale
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -300,6 +300,7 @@ def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathL
 
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     jobs = run_jobs(study)
     todo = [(p, r) for p, r in jobs if rep.finished_repeat(out, run_id(study, p), r) is None]
     total, done = len(jobs), len(jobs) - len(todo)

@@ -92,7 +92,8 @@ class EventWriter:
         self._streams: dict[str, _Stream] = {}
         self._t_end_us: int | None = None
         try:
-            self._file = h5py.File(self._tmp, "w")
+            # The stage holds its own lock (gevsim.io.atomic); HDF5's would conflict with it.
+            self._file = h5py.File(self._tmp, "w", locking=False)
             attrs = self._file.attrs
             attrs.update(width=int(width), height=int(height), config_toml=str(config_toml), seed=int(seed),
                          gevsim_version=__version__, format=FORMAT)
@@ -272,7 +273,9 @@ class EventReader:
         if not self.path.is_file():
             raise ConfigError("no such file", source=src)
         try:
-            self._file = h5py.File(self.path, "r")
+            # No HDF5 file lock: complete files are never written again, and a writer's check of
+            # its own finished stage (EventWriter.close(before_commit=...)) reads it while the stage is locked.
+            self._file = h5py.File(self.path, "r", locking=False)
         except OSError as exc:
             raise ConfigError(f"not an HDF5 file ({exc})", source=src) from None
         attrs = self._file.attrs

@@ -30,7 +30,7 @@ import numpy as np
 import gevsim
 from gevsim.errors import ConfigError
 from gevsim.illumination import Waveform, weights_at
-from gevsim.io import read_exr_layers, write_exr_layers
+from gevsim.io import read_exr_layers, sweep_stale, write_exr_layers
 from gevsim.optics import luminance
 from gevsim.render.convergence import (
     MIN_BATCHES,
@@ -298,6 +298,7 @@ def render_basis(
     """
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     cache.mkdir(parents=True, exist_ok=True)
+    sweep_stale(cache, recursive=False)  # renders killed half way (other processes' live ones are locked)
     m = scene.manifest
     r = m.render
     times = scene.pose_times() if times_s is None else np.asarray(times_s, float)

@@ -210,3 +210,17 @@ def test_an_edited_scene_file_or_another_version_redoes_the_sequence(tmp_path, m
     assert finished(config, out, 0) is not None
     monkeypatch.setattr(dataset_mod, "__version__", "999.0")
     assert finished(config, out, 0) is None
+
+
+def test_a_rerun_removes_what_killed_runs_left(reference, tmp_path):
+    """Stages nobody holds (kill -9 runs no cleanup) are swept at the start of a rerun, finished or not."""
+    config, ref, cache, _ = reference
+    out = tmp_path / "out"
+    shutil.copytree(ref, out)
+    left = [out / "shards" / ".seq_00001.h5.gevsim-k1ll3d00.tmp", out / "evreal" / ".seq_00001.gevsim-k1ll3d00.tmp"]
+    left[0].write_bytes(b"half an HDF5 file")
+    left[1].mkdir()
+    for p in left:
+        os.utime(p, (p.stat().st_mtime - 60,) * 2)
+    assert generate(config, out, cache_dir=cache)["done"] == 0
+    assert not any(p.exists() for p in left) and not list(out.rglob("*gevsim-*"))
