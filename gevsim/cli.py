@@ -174,22 +174,22 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     if args.config is None:
         return _emulate_frames(args)
     from gevsim.emulation import load_config, run
+    from gevsim.emulation import summary as summary_mod
 
     config = _override_emulation(load_config(args.config), args)
     update, close = _progress("emulate", not args.quiet, unit="chunk")
     render_update, render_close = _progress("render", not args.quiet)
-    try:
+    stats = {}
+    try:  # the statistics are read back before the file replaces an earlier one: a failure there keeps it
         summary = run(config, args.out, cache_dir=args.cache, flicker=not args.no_flicker, noise=not args.no_noise,
-                      progress=update, render_progress=render_update)
+                      progress=update, render_progress=render_update,
+                      before_commit=lambda tmp: stats.update(summary_mod.summarize(tmp)))
     finally:
         render_close()
         close()
     print(f"gevsim: {summary.width}x{summary.height}, {summary.steps} steps of "
           f"{config.step_s * 1e6:g} us ({summary.duration_s * 1e3:g} ms), {summary.frames} ground-truth frames;"
           f" pixel model {summary.pixel_steps_per_s / 1e6:.1f} M pixel-steps/s", file=sys.stderr)
-    from gevsim.emulation.summary import summarize
-
-    stats = summarize(args.out)
     print(f"{'stream':20s} {'events':>10s} {'events/s':>11s} {'per pixel/s':>11s} {'p/frame':>8s} "
           f"{'emulator s':>10s}")
     for (name, count), seconds in zip(summary.counts.items(), summary.event_s.values()):

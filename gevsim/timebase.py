@@ -12,6 +12,10 @@ from numpy.typing import ArrayLike
 from gevsim._validate import FieldError, integer, real, real_array
 from gevsim.config import FromTable
 
+#: The shortest duration an emulation may have: event files count time in whole microseconds, so a
+#: shorter one has no tick to put an event on and no length to give a rate.
+MIN_DURATION_S = 1e-6
+
 
 @dataclass(frozen=True)
 class TimeGrid(FromTable):
@@ -36,6 +40,7 @@ class TimeGrid(FromTable):
     def __post_init__(self) -> None:
         if self.duration_s is not None:
             object.__setattr__(self, "duration_s", real(self.duration_s, "duration_s", low=0.0, low_open=True))
+            _check_duration(self.duration_s)
         object.__setattr__(self, "step_s", real(self.step_s, "step_s", low=0.0, low_open=True))
         object.__setattr__(self, "chunk_steps", integer(self.chunk_steps, "chunk_steps", low=1))
         object.__setattr__(self, "frame_rate_hz", real(self.frame_rate_hz, "frame_rate_hz", low=0.0))
@@ -45,6 +50,7 @@ class TimeGrid(FromTable):
     def steps(self, duration_s: float) -> int:
         """The number of steps in ``duration_s`` (the grid's own duration, or the scene's when it has none);
         FieldError when it is not a whole number of steps longer than one."""
+        _check_duration(duration_s)
         if self.step_s >= duration_s:
             raise FieldError("step_s", f"step_s = {self.step_s} must be shorter than the duration {duration_s} s")
         steps = duration_s / self.step_s
@@ -58,6 +64,12 @@ class TimeGrid(FromTable):
         if self.frame_rate_hz <= 0:
             return np.zeros(0)
         return np.arange(0.0, duration_s + 1e-12, 1.0 / self.frame_rate_hz)
+
+
+def _check_duration(duration_s: float) -> None:
+    if duration_s < MIN_DURATION_S:
+        raise FieldError("duration_s", f"duration_s = {duration_s:g} is shorter than 1 us, the clock tick of event "
+                                       "files (timestamps are whole microseconds)")
 
 
 def check_chunk(values: ArrayLike, t_s: ArrayLike, *, shape: Sequence[int], name: str,

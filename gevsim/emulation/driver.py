@@ -147,10 +147,13 @@ def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.nd
 
 def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
         flicker: bool = True, noise: bool = True, progress: Progress | None = None,
-        render_progress: Progress | None = None, setup: Setup | None = None) -> RunSummary:
+        render_progress: Progress | None = None, setup: Setup | None = None,
+        before_commit: Callable[[os.PathLike], object] | None = None) -> RunSummary:
     """Run an emulation and write ``out`` (HDF5). Returns its :class:`RunSummary` (counts, rates, timings).
 
     ``setup`` (from :func:`prepare` with the same config) skips loading the basis again.
+    ``before_commit(tmp)`` gets the finished file under its temporary name before it replaces ``out``
+    (:meth:`gevsim.io.EventWriter.close`): a failure there leaves an earlier ``out`` untouched.
     """
     start = time.perf_counter()
     setup = setup if setup is not None else prepare(config, cache_dir=cache_dir, progress=render_progress)
@@ -207,7 +210,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
                 counts[stream] += len(events)
             if progress:
                 progress(c + 1, len(chunks))
-        wr.close(t_end_us=int(round(setup.duration_s * 1e6)))
+        wr.close(t_end_us=int(round(setup.duration_s * 1e6)), before_commit=before_commit)
     pixel_steps = n_steps * h * w
     return RunSummary(
         out=str(out), width=w, height=h, steps=n_steps, duration_s=setup.duration_s, frames=len(frame_t),

@@ -19,7 +19,8 @@ Output: ``DIR/shards/seq_{i:05d}.h5`` (the emulation), ``DIR/evreal/seq_{i:05d}/
 (DVS events, ground truth tone-mapped to uint8) and, written atomically last as
 the done-marker, ``DIR/shards/seq_{i:05d}.json``. A sequence counts as done only
 if its marker parses, its shard (and EVREAL folder) exist and the marker's
-config equals the one it would run now; otherwise it is redone from scratch.
+config, scene file contents and gevsim version equal the ones it would run now
+(:func:`finished`); otherwise it is redone from scratch.
 ``DIR/dataset.json`` lists the done ones.
 """
 
@@ -46,7 +47,7 @@ from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.experiments.executors import run_all
-from gevsim.io import EventReader, atomic_write_text, export_evreal
+from gevsim.io import EventReader, atomic_write_text, export_evreal, sweep_stale
 from gevsim.reconstruct.tonemap import ToneMap
 from gevsim.render.quality import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -214,12 +215,20 @@ def _paths(out_dir, index: int) -> tuple[Path, Path, Path]:
 
 
 def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int) -> dict | None:
-    """The done-marker of sequence ``index`` if it is finished for this config, else None."""
+    """The done-marker of sequence ``index`` if it is finished for this config, else None.
+
+    Finished means: the marker parses, names the config this sequence would run now, the same
+    contents of its scene's files (:func:`gevsim.render.inputs.scene_digest`) and this gevsim
+    version, and the shard (and EVREAL folder) exist.
+    """
+    from gevsim.render.inputs import scene_digest
+
     marker, shard, evreal = _paths(out_dir, index)
     try:
         record = json.loads(marker.read_text())
-        same = tomllib.loads(record["config_toml"]) == tomllib.loads(
-            sequence_config(config, sequence_parameters(config, index)).to_toml())
+        params = sequence_parameters(config, index)
+        same = (tomllib.loads(record["config_toml"]) == tomllib.loads(sequence_config(config, params).to_toml())
+                and record["gevsim_version"] == __version__ and record["scene_sha256"] == scene_digest(params["scene"]))
     except (OSError, ValueError, KeyError, TypeError):
         return None
     return record if same and shard.is_file() and (evreal.is_dir() or not config.evreal) else None
@@ -248,6 +257,7 @@ def _export_evreal(shard: Path, folder: Path, params: dict) -> None:
 def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: str | None = None) -> dict:
     """Make sequence ``index`` unless finished (picklable: what executors run). Returns a small dict."""
     from gevsim.emulation.driver import run
+    from gevsim.render.inputs import scene_digest
 
     done = finished(config, out_dir, index)
     if done is not None:
@@ -257,6 +267,7 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     marker, shard, evreal = _paths(out_dir, index)
     params = sequence_parameters(config, index)
     emulation = sequence_config(config, params)
+    scene_sha256 = scene_digest(params["scene"])  # before the run: an edit during it makes the next run redo it
     summary = run(emulation, shard, cache_dir=cache_dir)
     if config.evreal:
         _export_evreal(shard, evreal, params)
@@ -264,6 +275,7 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     record = {"index": index, "parameters": params, "config_toml": emulation.to_toml(), "counts": summary.counts,
               "frames": summary.frames, "width": summary.width, "height": summary.height,
               "shard": str(shard.relative_to(Path(out_dir))), "seconds": seconds, "gevsim_version": __version__,
+              "scene_sha256": scene_sha256,
               "evreal": str(evreal.relative_to(Path(out_dir))) if config.evreal else None}
     atomic_write_text(marker, json.dumps(record, indent=1))  # last: the done-marker
     return {"index": index, "status": "done", "counts": summary.counts, "seconds": seconds}
@@ -282,6 +294,7 @@ def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.
     """
     start = time.perf_counter()
     out = Path(out_dir)
+    sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     indices = list(dict.fromkeys(range(config.sequences) if indices is None else indices))
     for i in indices:
         sequence_parameters(config, i)  # validates the index

@@ -6,7 +6,8 @@ module-level functions and collects small result dicts with ``as_completed``.
 The local pool uses the ``spawn`` start method: the parent has usually
 imported Mitsuba/Dr.Jit (whose LLVM backend keeps a thread pool) and numba,
 and forking a process with live threads can deadlock the child. A spawned
-worker pays ~1-2 s of imports once, then runs any number of jobs.
+worker pays ~1-2 s of imports once, then runs any number of jobs. Workers exit
+when the process that started them dies, even by kill -9 (:func:`_exit_with_parent`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from typing import Any
@@ -29,10 +32,27 @@ log = logging.getLogger(__name__)
 WORKER_THREADS_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
-def _single_threaded() -> None:
-    """Process-pool initializer: runs in the spawned worker before it imports numpy or numba."""
+#: How often (seconds) a pool worker checks that the process that started it is alive.
+PARENT_POLL_S = 0.5
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Exit this process as soon as ``parent_pid`` is no longer its parent (the parent died, even by
+    kill -9, and the worker was handed to init): a pool's workers never outlive their run."""
+    while True:
+        if os.getppid() != parent_pid:
+            os._exit(1)
+        time.sleep(PARENT_POLL_S)
+
+
+def _single_threaded(parent_pid: int | None = None) -> None:
+    """Process-pool initializer: runs in the spawned worker before it imports numpy or numba. With
+    ``parent_pid``, a daemon thread ends the worker when that parent dies (:func:`_exit_with_parent`)."""
     for name in WORKER_THREADS_ENV:
         os.environ.setdefault(name, "1")
+    if parent_pid is not None:
+        threading.Thread(target=_exit_with_parent, args=(parent_pid,), name="gevsim-parent-watch",
+                         daemon=True).start()
 
 
 @contextlib.contextmanager
@@ -41,7 +61,7 @@ def _local(workers: int | None, scheduler: str | None, processes: bool) -> Itera
     if scheduler is not None:
         raise ConfigError("a scheduler address needs the dask executor", key="scheduler")
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=_single_threaded) as pool:
+                             initializer=_single_threaded, initargs=(os.getpid(),)) as pool:
         yield pool
 
 

@@ -302,14 +302,14 @@ def write_maps(folder: Path, study: Study, out: Path, rows: list[dict]) -> dict[
 def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path:
     """results.csv/json, maps.npz, figures, report.md and config.toml, staged then moved in next to ``runs/``."""
     import os
-    import shutil
-    import tempfile
 
+    from gevsim.io import Staged
     from gevsim.plots import _pyplot
 
     out = Path(out)
     assert all(row["id"] == run_id(study, p) for row, p in zip(rows, study.runs()))
-    stage = Path(tempfile.mkdtemp(prefix=".outputs-partial-", dir=out))
+    staged = Staged(out / "outputs-partial", folder=True)  # locked while it exists; a killed run's is swept
+    stage = staged.path
     try:
         write_table(stage, rows)
         maps = write_maps(stage, study, out, rows)
@@ -325,7 +325,7 @@ def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path
         for item in stage.iterdir():
             os.replace(item, out / item.name)
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        staged.discard()
     return out / "report.md"
 
 

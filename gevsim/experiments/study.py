@@ -17,7 +17,9 @@ against the flicker-free reference.
 Each (run, repeat) is one job (:mod:`gevsim.experiments.repeat`), run here or by
 an executor (:mod:`gevsim.experiments.executors`); each writes
 ``runs/<id>/r<k>.json`` last and atomically, so a rerun skips finished jobs and
-interrupted studies resume.
+interrupted studies resume. The run id hashes the run's settings, the contents of
+its scene's files and the gevsim version (:func:`run_id`): after an edit of the
+scene (its manifest, builder or a texture) or an upgrade, a rerun computes anew.
 
 ```toml
 [study]
@@ -67,13 +69,15 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim import __version__
+from gevsim._validate import FieldError
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.experiments.executors import run_all
-from gevsim.io import atomic_path
+from gevsim.io import atomic_path, sweep_stale
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -169,6 +173,11 @@ def load_study(path: str | Path) -> Study:
             **dataclasses.asdict(grid),
             "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {})),
             "repeats": r.number(st, "repeats", "study", DEFAULT_REPEATS, positive=True, integer=True)}
+    try:  # the time grid's own checks (whole steps, at least one clock tick), before any work
+        TimeGrid(**{k: base[k] for k in ("duration_s", "step_s", "chunk_steps", "frame_rate_hz")}).steps(
+            base["duration_s"])
+    except FieldError as err:
+        r.fail(f"study.{err.field}", str(err))
     return Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
                  text=path.read_text(), description=str(st.get("description", "")))
 
@@ -201,13 +210,18 @@ def waveform_spec(params: dict) -> dict | None:
     return {"type": "dc"}
 
 
-def run_config(study: Study, params: dict) -> EmulationConfig:
-    b = study.base
-    name = params.get("scene", b["scene"])
-    group = flicker_group(study, name)
-    scene = name
+def run_scene(study: Study, params: dict) -> str:
+    """The scene of a run: a built-in name, or a manifest path (relative ones resolved from the study file)."""
+    scene = params.get("scene", study.base["scene"])
     if scene.endswith(".toml") and not Path(scene).is_absolute():
         scene = str((Path(study.source).parent / scene).resolve())
+    return scene
+
+
+def run_config(study: Study, params: dict) -> EmulationConfig:
+    b = study.base
+    group = flicker_group(study, params.get("scene", b["scene"]))
+    scene = run_scene(study, params)
     wave = waveform_spec(params)
     cfg = EmulationConfig(
         scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]), seed=b["seed"],
@@ -240,9 +254,14 @@ def flicker_frequency_hz(study: Study, params: dict, cfg: EmulationConfig) -> fl
 
 def run_id(study: Study, params: dict) -> str:
     """Identity of a run: its base settings and parameters (not the number of repeats, so a study given
-    more repeats keeps the finished ones)."""
+    more repeats keeps the finished ones), the contents of every file its scene is made of (manifest,
+    builder, textures: :func:`gevsim.render.inputs.scene_digest`) and the gevsim version. A rerun after
+    any of them changed computes the run again."""
+    from gevsim.render.inputs import scene_digest
+
     base = {k: v for k, v in study.base.items() if k != "repeats"}
-    payload = json.dumps({"base": base, "params": params}, sort_keys=True, default=str)
+    payload = json.dumps({"base": base, "params": params, "scene_sha256": scene_digest(run_scene(study, params)),
+                          "gevsim": __version__}, sort_keys=True, default=str)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
@@ -283,6 +302,7 @@ def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathL
 
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     jobs = run_jobs(study)
     todo = [(p, r) for p, r in jobs if rep.finished_repeat(out, run_id(study, p), r) is None]
     total, done = len(jobs), len(jobs) - len(todo)

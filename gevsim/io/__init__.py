@@ -1,7 +1,7 @@
 """File formats: HDF5 event files, EVREAL folders, text events, OpenEXR images, frame sequences,
 atomic writes."""
 
-from gevsim.io.atomic import MANIFEST, Staged, atomic_dir, atomic_path, atomic_write_text
+from gevsim.io.atomic import MANIFEST, Staged, atomic_dir, atomic_path, atomic_write_text, remove_stale, sweep_stale
 from gevsim.io.evreal import export_evreal, import_evreal
 from gevsim.io.exr import read_exr, read_exr_layers, write_exr, write_exr_layers
 from gevsim.io.frames import load_evreal_frames, load_frame_folder, load_video
@@ -25,6 +25,8 @@ __all__ = [
     "load_video",
     "read_exr",
     "read_exr_layers",
+    "remove_stale",
+    "sweep_stale",
     "write_exr",
     "write_exr_layers",
 ]

@@ -5,21 +5,138 @@ output and an earlier result survives until the new one is complete.
 :class:`Staged` is the one mechanism; :func:`atomic_path` (a file), :func:`atomic_dir`
 (a folder) and :class:`~gevsim.io.hdf5.EventWriter` (a file kept open across calls)
 use it.
+
+A stage is named ``.<target name>.gevsim-<8 random characters><suffix>`` and is held
+with an exclusive ``flock`` while it exists, so a stage that nobody holds is the
+leftover of a killed process (kill -9 runs no cleanup). A new stage of the same
+target removes such leftovers first (:func:`remove_stale`), and studies, datasets and
+the render cache sweep their folders (:func:`sweep_stale`); a stage a live process
+holds is never touched, so concurrent writers are safe.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import logging
 import os
+import re
 import shutil
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 from gevsim.errors import ConfigError
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: no locks, leftovers are recognised by age alone
+    fcntl = None
+
+log = logging.getLogger(__name__)
+
 #: The file that marks a folder as a gevsim output (written last, inside the stage).
 MANIFEST = "manifest.json"
+#: What every stage name carries after ``.<target name>.``.
+TAG = "gevsim-"
+_STAGE = re.compile(r"^\.(?P<name>.+)\." + TAG + r"[a-z0-9_]{8}(?P<suffix>\.[A-Za-z0-9_]+)?$")
+#: An unlocked stage younger than this is left alone: a new stage is locked within microseconds of
+#: being created, and this margin covers that instant.
+GRACE_S = 1.0
+#: Where locks cannot be taken (no fcntl, or a file system that refuses them), a stage counts as a
+#: leftover only when it is older than this.
+STALE_AFTER_S = 3600.0
+
+
+def _hold(fd: int) -> int | None:
+    """Lock ``fd`` exclusively (the lock lives as long as the descriptor); None where locks are not to be had."""
+    if fcntl is None:
+        os.close(fd)
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def _release(fd: int | None) -> None:
+    if fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+
+
+def is_stale(path: str | os.PathLike, *, now: float | None = None) -> bool:
+    """Whether a stage is a dead process's leftover: nobody holds its lock (or, without locks, it is
+    older than :data:`STALE_AFTER_S`), and it is older than :data:`GRACE_S`."""
+    path = Path(path)
+    try:
+        age = (time.time() if now is None else now) - path.lstat().st_mtime
+    except OSError:
+        return False
+    if age < GRACE_S:
+        return False
+    if fcntl is None:
+        return age > STALE_AFTER_S
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        return exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN) and age > STALE_AFTER_S
+    finally:
+        os.close(fd)
+    return True
+
+
+def _remove(path: Path) -> None:
+    """Remove a leftover stage; a leftover ``.old`` whose target is missing is put back first (a swap
+    killed half way)."""
+    match = _STAGE.match(path.name)
+    if match and match["suffix"] == ".old" and path.is_dir():
+        target, kept = path.parent / match["name"], path / "x"
+        if not os.path.lexists(target) and os.path.lexists(kept):
+            os.replace(kept, target)
+            log.warning("restored %s from %s (a folder swap was interrupted)", target, path)
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+    log.info("removed %s, left by an interrupted run", path)
+
+
+def remove_stale(target: str | os.PathLike) -> list[Path]:
+    """Remove the leftover stages of ``target`` (:func:`is_stale`); returns what was removed."""
+    target = Path(target)
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(target.parent):
+            match = _STAGE.match(entry.name)
+            if match and match["name"] == target.name and is_stale(entry.path):
+                _remove(Path(entry.path))
+                removed.append(Path(entry.path))
+    return removed
+
+
+def sweep_stale(folder: str | os.PathLike, *, recursive: bool = True) -> list[Path]:
+    """Remove every leftover stage under ``folder`` (:func:`is_stale`); returns what was removed."""
+    folder = Path(folder)
+    removed = []
+    if not folder.is_dir():
+        return removed
+    for dirpath, dirnames, filenames in os.walk(folder):
+        for name in dirnames + filenames:
+            path = Path(dirpath) / name
+            if _STAGE.match(name) and is_stale(path):
+                _remove(path)
+                removed.append(path)
+        dirnames[:] = [d for d in dirnames if recursive and not _STAGE.match(d)]
+    return removed
 
 
 class Staged:
@@ -31,39 +148,51 @@ class Staged:
     folder : stage a folder (else a file).
     suffix : of the temporary name (default: the target's suffix, or ``.tmp``).
 
-    The temporary name starts with ``.<target name>.``, so leftovers of a killed
-    process are easy to find.
+    The temporary name is ``.<target name>.gevsim-XXXXXXXX<suffix>`` and the stage is
+    locked while it exists; leftovers of killed processes (stages nobody holds) are
+    removed first (:func:`remove_stale`).
     """
 
     def __init__(self, target: str | os.PathLike, *, folder: bool = False, suffix: str | None = None):
         self.target = Path(target)
         self.folder = folder
-        prefix = f".{self.target.name}."
+        self._fd = None
+        prefix = f".{self.target.name}.{TAG}"
         suffix = suffix or (".tmp" if folder else self.target.suffix or ".tmp")
         try:
             self.target.parent.mkdir(parents=True, exist_ok=True)
+            remove_stale(self.target)
             if folder:
                 self.path = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=self.target.parent))
+                self._fd = _hold(os.open(self.path, os.O_RDONLY))
             else:
                 fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=self.target.parent)
-                os.close(fd)
                 self.path = Path(tmp)
+                self._fd = _hold(fd)
         except OSError as exc:  # where the user asked for output: an input error, not a bug
             raise ConfigError(f"cannot write here ({exc.strerror or exc})", source=str(self.target)) from None
 
     def commit(self) -> None:
         """Rename the stage onto the target; a folder target is swapped (restored if that fails)."""
-        if not (self.folder and self.target.is_dir()):
-            os.replace(self.path, self.target)
-            return
-        old = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.", suffix=".old", dir=self.target.parent))
-        os.replace(self.target, old / "x")
         try:
-            os.replace(self.path, self.target)
-        except BaseException:
-            os.replace(old / "x", self.target)
-            raise
-        shutil.rmtree(old, ignore_errors=True)
+            if not (self.folder and self.target.is_dir()):
+                os.replace(self.path, self.target)
+                return
+            old = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.{TAG}", suffix=".old", dir=self.target.parent))
+            held = _hold(os.open(old, os.O_RDONLY))
+            try:
+                os.replace(self.target, old / "x")
+                try:
+                    os.replace(self.path, self.target)
+                except BaseException:
+                    os.replace(old / "x", self.target)
+                    raise
+                shutil.rmtree(old, ignore_errors=True)
+            finally:
+                _release(held)
+        finally:
+            _release(self._fd)
+            self._fd = None
 
     def discard(self) -> None:
         """Remove the stage; the target is untouched."""
@@ -72,6 +201,8 @@ class Staged:
         else:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(self.path)
+        _release(self._fd)
+        self._fd = None
 
 
 @contextlib.contextmanager

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
@@ -92,7 +93,8 @@ class EventWriter:
         self._streams: dict[str, _Stream] = {}
         self._t_end_us: int | None = None
         try:
-            self._file = h5py.File(self._tmp, "w")
+            # The stage holds its own lock (gevsim.io.atomic); HDF5's would conflict with it.
+            self._file = h5py.File(self._tmp, "w", locking=False)
             attrs = self._file.attrs
             attrs.update(width=int(width), height=int(height), config_toml=str(config_toml), seed=int(seed),
                          gevsim_version=__version__, format=FORMAT)
@@ -214,13 +216,20 @@ class EventWriter:
             obj.attrs[key] = value
 
     # -- finishing -------------------------------------------------------------------
-    def close(self, t_end_us: int | None = None) -> None:
-        """Finalise ``ms_to_idx``, mark the file complete and rename it onto ``path``."""
+    def close(self, t_end_us: int | None = None, *, before_commit: Callable[[Path], object] | None = None) -> None:
+        """Finalise ``ms_to_idx``, mark the file complete and rename it onto ``path``.
+
+        ``before_commit(tmp)`` is called with the finished, closed file under its temporary name before
+        the rename: whatever else must succeed for the output to count (reading it back, a summary) runs
+        there, so if it raises an earlier file at ``path`` is left as it was.
+        """
         if self.closed:
             return
         try:
             self._finalise(self._t_end_us if t_end_us is None else int(t_end_us))
             self._file.close()
+            if before_commit is not None:
+                before_commit(self._tmp)
             self._stage.commit()
         except BaseException:
             self.abort()
@@ -264,7 +273,9 @@ class EventReader:
         if not self.path.is_file():
             raise ConfigError("no such file", source=src)
         try:
-            self._file = h5py.File(self.path, "r")
+            # No HDF5 file lock: complete files are never written again, and a writer's check of
+            # its own finished stage (EventWriter.close(before_commit=...)) reads it while the stage is locked.
+            self._file = h5py.File(self.path, "r", locking=False)
         except OSError as exc:
             raise ConfigError(f"not an HDF5 file ({exc})", source=src) from None
         attrs = self._file.attrs

@@ -8,7 +8,8 @@ or a fixed ``spp`` is reached. Radiance at time t is
 between the two poses around t.
 
 Each pose is cached as one float32 EXR (every group's image, its noise sample
-and the per-pixel ln error map) named by a hash of the scene content, pose,
+and the per-pixel ln error map) named by a hash of the scene content (with every
+file its builder loads: :mod:`gevsim.render.inputs`), pose,
 groups, seed, sampler and variant. Quality is recorded in the file, not in the
 name: a cached render that meets a request serves it (:func:`serves`).
 """
@@ -30,7 +31,7 @@ from numpy.typing import ArrayLike
 import gevsim
 from gevsim.errors import ConfigError
 from gevsim.illumination import Waveform, weights_at
-from gevsim.io import read_exr_layers, write_exr_layers
+from gevsim.io import read_exr_layers, sweep_stale, write_exr_layers
 from gevsim.optics import luminance
 from gevsim.render.convergence import (
     MIN_BATCHES,
@@ -74,6 +75,7 @@ def cache_key(scene: MitsubaScene, pose: Pose) -> str:
     r = scene.manifest.render
     payload = {
         "scene": content_hash(scene.manifest),
+        "inputs": scene.inputs_digest,  # files the builder loads (textures, meshes, helper modules)
         "pose": pose.key(),
         "groups": list(scene.manifest.group_names),
         "seed": r.seed,
@@ -298,6 +300,7 @@ def render_basis(
     """
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     cache.mkdir(parents=True, exist_ok=True)
+    sweep_stale(cache, recursive=False)  # renders killed half way (other processes' live ones are locked)
     m = scene.manifest
     r = m.render
     times = scene.pose_times() if times_s is None else np.asarray(times_s, float)

@@ -100,6 +100,8 @@ class SceneManifest:
     optics: dict = field(default_factory=dict)
     description: str = ""
     raw: dict = field(default_factory=dict, repr=False)
+    #: This manifest and every manifest it ``extends``, resolved (what :mod:`gevsim.render.inputs` hashes).
+    manifests: tuple[Path, ...] = ()
 
     @property
     def group_names(self) -> tuple[str, ...]:
@@ -134,15 +136,18 @@ def resolve(scene: str | Path) -> Path:
     return scenes[str(scene)]
 
 
-def _read_toml(path: Path, chain: tuple[Path, ...] = ()) -> dict:
+def _read_toml(path: Path, chain: tuple[Path, ...] = (), files: list[Path] | None = None) -> dict:
+    """The manifest at ``path`` merged over the ones it extends; ``files`` collects every file read."""
     data = read_toml(path, what="scene manifest")
+    if files is not None:
+        files.append(path.resolve())
     base = data.get("scene", {}).get("extends")
     if base is None:
         return data
     parent = (path.parent / base).resolve()
     if parent in chain:
         raise ConfigError(f"'extends' loops back to {parent}", source=str(path), key="scene.extends")
-    merged = _read_toml(parent, chain + (parent,))
+    merged = _read_toml(parent, chain + (parent,), files)
     for table, value in data.items():
         if isinstance(value, dict) and isinstance(merged.get(table), dict):
             merged[table] = {**merged[table], **value}
@@ -158,7 +163,8 @@ def _read_toml(path: Path, chain: tuple[Path, ...] = ()) -> dict:
 def load(scene: str | Path) -> SceneManifest:
     """Load and validate a scene manifest (a path or a built-in scene name)."""
     path = resolve(scene)
-    raw = _read_toml(path, (path.resolve(),))
+    manifests: list[Path] = []
+    raw = _read_toml(path, (path.resolve(),), manifests)
     r = TomlReader(str(path))
     check_keys(raw, TABLES, source=r.source, where="")
 
@@ -261,6 +267,7 @@ def load(scene: str | Path) -> SceneManifest:
         optics=optics,
         description=str(sc.get("description", "")),
         raw=raw,
+        manifests=tuple(manifests),
     )
 
 

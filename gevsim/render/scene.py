@@ -10,19 +10,18 @@ images of the groups sum to the render with every group on.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import logging
 import math
-from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 
 from gevsim.errors import ConfigError, suggest
 from gevsim.render import backend, integrator
+from gevsim.render.inputs import build_shapes, files_digest
+from gevsim.render.inputs import load_builder as load_builder  # re-exported (it lived here)
 from gevsim.render.manifest import Emission, LightGroup, SceneManifest
 from gevsim.render.trajectory import Pose, pose_at, pose_times
-from gevsim.render.xml_scene import is_xml, load_xml_objects, object_emits, xml_inputs
+from gevsim.render.xml_scene import is_xml, object_emits, xml_inputs
 
 log = logging.getLogger(__name__)
 
@@ -51,21 +50,6 @@ def exact_count(sampler: str, spp: int) -> int:
             root -= 1
         return max(2, root) ** 2
     return spp
-
-
-def load_builder(path: Path) -> Callable[[dict], dict]:
-    """Import a scene builder file and return its ``build`` function."""
-    spec = importlib.util.spec_from_file_location(f"gevsim_scene_{path.stem}", path)
-    if spec is None or spec.loader is None:
-        raise ConfigError("not an importable Python file", source=str(path))
-    module = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(module)
-    except Exception as exc:
-        raise ConfigError(f"scene builder failed to import: {exc}", source=str(path)) from exc
-    if not callable(getattr(module, "build", None)):
-        raise ConfigError("scene builder defines no build(options) function", source=str(path))
-    return module.build
 
 
 def content_hash(manifest: SceneManifest) -> str:
@@ -145,12 +129,7 @@ class MitsubaScene:
         mi.set_variant(self.variant.variant)
         self._mi = mi
         self._object_emission: dict[str, tuple[float, float, float]] = {}
-        if is_xml(manifest.builder):
-            shapes = load_xml_objects(mi, manifest.builder, dict(manifest.options))
-        else:
-            shapes = load_builder(manifest.builder)(dict(manifest.options))
-        if not isinstance(shapes, dict):
-            raise ConfigError("build(options) must return a dict of Mitsuba objects", source=str(manifest.builder))
+        shapes, self.builder_files = build_shapes(manifest)  # a Python builder's dict or an XML scene's objects
         self.scene_dict = self._assemble(shapes)
         try:
             self.scene = mi.load_dict(self.scene_dict, optimize=False)
@@ -301,6 +280,11 @@ class MitsubaScene:
             pts.append(0.5 * (lo + hi))
             pts.extend(np.array(np.meshgrid(*zip(lo, hi))).reshape(3, -1).T)
         return np.array(pts)
+
+    @property
+    def inputs_digest(self) -> str:
+        """Content hash of the builder and every file it loaded (:mod:`gevsim.render.inputs`)."""
+        return files_digest(self.builder_files, base=self.manifest.builder.parent)
 
     # -- control --------------------------------------------------------------------
     def pose_times(self) -> np.ndarray:

@@ -265,3 +265,33 @@ def test_render_noise_floor_is_zero_without_render_noise_and_positive_with_it(tm
     assert noise["spp_min"] >= 4 and noise["se_ln"]["p99"] > 0 and noise["stopped_by"] == ["fixed"]
     with pytest.raises(ValueError, match="frequency_hz"):
         render_noise_floor(setup, frequency_hz=0.0)
+
+
+def test_a_failure_after_the_run_leaves_the_earlier_file(tmp_path, monkeypatch):
+    """What runs after the events are written (the summary read back from the file) runs before the file
+    replaces an earlier one: a crash there leaves the earlier output as it was, and no temporary file."""
+    from gevsim.emulation import summary as summary_mod
+
+    out, args = tmp_path / "x.h5", ["--cache", str(tmp_path / "c"), "-q"]
+    assert main(["emulate", str(config(tmp_path)), "--out", str(out), *args]) == 0
+    good = out.read_bytes()
+
+    def crash(path, **kwargs):
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr(summary_mod, "summarize", crash)
+    with pytest.raises(ZeroDivisionError):
+        main(["emulate", str(config(tmp_path, seed=9)), "--out", str(out), *args])
+    assert out.read_bytes() == good
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c", "run.toml", "x.h5"]
+
+
+@pytest.mark.parametrize("emulation", [dict(duration_s=1e-9, step_s=1e-10), dict(duration_s=5e-7, step_s=1e-7)])
+def test_a_time_grid_shorter_than_the_clock_tick_is_refused_up_front(tmp_path, capsys, emulation):
+    out = tmp_path / "x.h5"
+    out.write_bytes(b"an earlier output")
+    assert main(["emulate", str(config(tmp_path, **emulation)), "--out", str(out), "--cache", str(tmp_path / "c"),
+                 "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "run.toml" in err and "emulation.duration_s" in err and "1 us" in err and err.count("\n") == 1
+    assert out.read_bytes() == b"an earlier output" and not (tmp_path / "c").exists()

@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import tomli_w
+from conftest import textured_scene
 
+import gevsim.experiments.dataset as dataset_mod
 from gevsim.cli import main
 from gevsim.errors import ConfigError
 from gevsim.experiments.dataset import finished, generate, load_dataset_config, sequence_parameters
@@ -190,3 +192,36 @@ def test_cli_bad_config_exits_2_without_traceback(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "dataset.sequences" in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_an_edited_scene_file_or_another_version_redoes_the_sequence(tmp_path, monkeypatch):
+    scene = textured_scene(tmp_path / "scene")
+    config = load_dataset_config(write_config(tmp_path, sequences=1, scenes=[str(scene)], evreal=False,
+                                              sensors=["davis346"]))
+    out = tmp_path / "out"
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 1
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 0
+    with EventReader(shard(out, 0)) as r:
+        before = r.frames("log_photocurrent")[0]
+    textured_scene(tmp_path / "scene", card=0.05, backdrop=0.05)
+    assert finished(config, out, 0) is None
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 1
+    with EventReader(shard(out, 0)) as r:
+        assert r.frames("log_photocurrent")[0].mean() < before.mean() - 1.0  # darker textures: ln(20x) lower
+    assert finished(config, out, 0) is not None
+    monkeypatch.setattr(dataset_mod, "__version__", "999.0")
+    assert finished(config, out, 0) is None
+
+
+def test_a_rerun_removes_what_killed_runs_left(reference, tmp_path):
+    """Stages nobody holds (kill -9 runs no cleanup) are swept at the start of a rerun, finished or not."""
+    config, ref, cache, _ = reference
+    out = tmp_path / "out"
+    shutil.copytree(ref, out)
+    left = [out / "shards" / ".seq_00001.h5.gevsim-k1ll3d00.tmp", out / "evreal" / ".seq_00001.gevsim-k1ll3d00.tmp"]
+    left[0].write_bytes(b"half an HDF5 file")
+    left[1].mkdir()
+    for p in left:
+        os.utime(p, (p.stat().st_mtime - 60,) * 2)
+    assert generate(config, out, cache_dir=cache)["done"] == 0
+    assert not any(p.exists() for p in left) and not list(out.rglob("*gevsim-*"))

@@ -6,7 +6,9 @@ import re
 from pathlib import Path
 
 import pytest
+from conftest import textured_scene
 
+import gevsim.experiments.study as study_mod
 from gevsim.cli import main
 from gevsim.experiments import repeat as repeat_mod
 from gevsim.experiments.executors import make_executor
@@ -16,12 +18,12 @@ DATA = Path(__file__).parents[1] / "data"
 
 
 def write_study(tmp_path, sweep='waveform = ["dc", "sinusoid"]\nmodulation = [0.8]\nfrequency_hz = [1000.0]\n',
-                sensor="ideal", extra=""):
+                sensor="ideal", extra="", scene=DATA / "card.toml"):
     path = tmp_path / "study.toml"
     path.write_text(f"""
 [study]
 name = "tiny"
-scene = "{DATA / 'card.toml'}"
+scene = "{scene}"
 sensor = "{sensor}"
 emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]
 flicker_group = "lamp"
@@ -66,7 +68,7 @@ def test_study_outputs_and_counterfactual_physics(tmp_path, capsys):
     images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report)
     assert images and all((out / name).is_file() for name in images)
     assert (out / "config.toml").read_text() == cfg.read_text()
-    assert not list(out.glob(".outputs-partial-*"))
+    assert not list(out.glob(".outputs-partial*"))
 
 
 def test_rerun_resumes_without_recomputing(tmp_path, monkeypatch):
@@ -83,6 +85,24 @@ def test_rerun_resumes_without_recomputing(tmp_path, monkeypatch):
     again = run_study(study, out, cache_dir=tmp_path / "c")
     assert json.dumps(again) == json.dumps(first)
     assert {p: p.read_bytes() for p in (out / "runs").glob("*/r*.json")} == markers
+
+
+def test_rerun_after_a_scene_edit_computes_again(tmp_path, monkeypatch):
+    """The run id covers the scene's files (manifest, builder, textures) and the gevsim version."""
+    scene = textured_scene(tmp_path / "scene")
+    study = load_study(write_study(tmp_path, sweep='waveform = ["dc"]\n', extra="repeats = 1", scene=scene))
+    out, cache = tmp_path / "out", tmp_path / "c"
+    first = run_study(study, out, cache_dir=cache)[0]
+    scene.write_text(scene.read_text().replace("luminance_cd_m2 = 1e5", "luminance_cd_m2 = 1e3"))  # 100x dimmer
+    dimmed = run_study(study, out, cache_dir=cache)[0]
+    assert dimmed["id"] != first["id"]
+    assert dimmed["chip_lux_median"] == pytest.approx(first["chip_lux_median"] / 100, rel=1e-3)
+    textured_scene(tmp_path / "scene", card=0.05, backdrop=0.05)  # darker textures, same manifest and builder
+    darker = run_study(study, out, cache_dir=cache)[0]
+    assert darker["id"] not in (first["id"], dimmed["id"])
+    assert darker["chip_lux_median"] < 0.5 * dimmed["chip_lux_median"]
+    monkeypatch.setattr(study_mod, "__version__", "999.0")
+    assert study_mod.run_id(study, study.runs()[0]) != darker["id"]
 
 
 def test_a_killed_run_leaves_nothing_that_looks_finished(tmp_path, monkeypatch):
@@ -119,6 +139,17 @@ def test_malformed_study_config_exits_2(tmp_path, capsys, sweep, extra, text):
     assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "-q"]) == 2
     err = capsys.readouterr().err
     assert text in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("grid, text", [("duration_s = 1e-9\nstep_s = 1e-10", "study.duration_s: duration_s = 1e-09 "
+                                                                           "is shorter than 1 us"),
+                                        ("duration_s = 0.003\nstep_s = 7e-4", "study.step_s: the duration")])
+def test_a_bad_time_grid_fails_before_any_work(tmp_path, capsys, grid, text):
+    cfg = write_study(tmp_path)
+    cfg.write_text(cfg.read_text().replace("duration_s = 0.003\nstep_s = 5e-5", grid))
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert text in err and str(cfg) in err and not (tmp_path / "o").exists()
 
 
 def test_unknown_flicker_group_fails_before_rendering(tmp_path, capsys):

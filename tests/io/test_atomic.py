@@ -1,9 +1,14 @@
 """The one atomic-output mechanism: files and folders appear whole or not at all."""
 
+import os
+import signal
+import subprocess
+import sys
+
 import pytest
 
 from gevsim.errors import ConfigError
-from gevsim.io import MANIFEST, Staged, atomic_dir, atomic_path
+from gevsim.io import MANIFEST, Staged, atomic_dir, atomic_path, remove_stale, sweep_stale
 
 
 def test_file_appears_only_on_success(tmp_path):
@@ -55,3 +60,74 @@ def test_staged_commit_and_discard(tmp_path):
     kept.commit()
     dropped.discard()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k.h5"]
+
+
+KILLED_WRITER = """
+import os, signal, sys
+import numpy as np
+from gevsim.events.types import BRIGHTNESS_DTYPE
+from gevsim.io import EventWriter, Staged, atomic_dir
+folder = sys.argv[1]
+w = EventWriter(folder + "/x.h5", width=4, height=3, config_toml="", seed=0)
+w.append("events", np.zeros(5, BRIGHTNESS_DTYPE))
+Staged(folder + "/maps.npz")
+cm = atomic_dir(folder + "/evreal")
+cm.__enter__()
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def stages(folder):
+    return sorted(p.name for p in folder.rglob(".*gevsim-*"))
+
+
+def backdate(paths, seconds=10.0):
+    for p in paths:
+        t = p.stat().st_mtime - seconds
+        os.utime(p, (t, t))
+
+
+def test_a_killed_writers_stages_are_removed_by_the_next_write_and_live_ones_kept(tmp_path):
+    """kill -9 runs no cleanup: its stages stay, unlocked. The next write of the same target removes them;
+    a stage a live writer holds is left alone, however old."""
+    proc = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(tmp_path)], capture_output=True, text=True)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    left = stages(tmp_path)
+    assert len(left) == 3 and any(n.startswith(".x.h5.gevsim-") and n.endswith(".tmp") for n in left)
+    live = Staged(tmp_path / "x.h5")  # a concurrent writer of the same file
+    backdate(tmp_path.iterdir())
+    with atomic_path(tmp_path / "x.h5") as tmp:
+        tmp.write_text("new")
+    assert [n for n in stages(tmp_path) if n.startswith(".x.h5.")] == [live.path.name]
+    live.discard()
+    assert sweep_stale(tmp_path) and stages(tmp_path) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.h5"]
+
+
+def test_sweep_removes_only_unheld_stages_past_the_grace_period(tmp_path):
+    sub = tmp_path / "runs" / "abc"
+    sub.mkdir(parents=True)
+    dead = [sub / ".r0.json.gevsim-abcd1234.json", tmp_path / ".outputs-partial.gevsim-0123abcd.tmp"]
+    dead[0].write_text("{")
+    dead[1].mkdir()
+    (dead[1] / "results.csv").write_text("half")
+    young = sub / ".r1.json.gevsim-zzzz9999.json"
+    keep = [sub / "r0.json", tmp_path / ".config.settings", tmp_path / ".x.h5.abcdefgh.tmp"]
+    for p in keep:
+        p.write_text("a user's or a finished file")
+    backdate([*dead, *keep])
+    young.write_text("{")  # just created: a writer may not have locked it yet
+    assert sorted(sweep_stale(tmp_path)) == sorted(dead)
+    assert all(p.exists() for p in (*keep, young))
+
+
+def test_a_swap_killed_half_way_is_undone(tmp_path):
+    """commit() of a folder moves the old output aside, then the new one in: killed between the two, the
+    next write of that folder puts the old output back before anything else."""
+    out = tmp_path / "out"
+    old = tmp_path / ".out.gevsim-abcd1234.old"
+    (old / "x").mkdir(parents=True)
+    (old / "x" / "manifest.json").write_text("{}")
+    backdate([old])
+    assert remove_stale(out) == [old]
+    assert (out / "manifest.json").read_text() == "{}" and not old.exists()
