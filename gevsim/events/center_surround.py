@@ -23,6 +23,8 @@ from gevsim._validate import real
 from gevsim.events.brightness import BrightnessEmulator
 from gevsim.pixel.params import EventParams
 
+COLUMN_BLOCK = 16  # columns per parallel work item of the y solves
+
 
 def thomas_coefficients(n: int, c: float) -> tuple[np.ndarray, np.ndarray]:
     """Forward-elimination factors of (1 + 2c) s_i - c (s_{i-1} + s_{i+1}) = v_i with
@@ -77,24 +79,47 @@ def centre_minus_surround(v: np.ndarray, decay: np.ndarray, surround: np.ndarray
                           up_x: np.ndarray, inv_y: np.ndarray, up_y: np.ndarray, c: float, diff: np.ndarray) -> None:
     """For each step k: target = diffuse(v[k]); surround <- target + decay[k] (surround - target)
     (exact first-order low-pass for held input); diff[k] = v[k] - surround. ``surround`` is
-    updated in place (the state carried across chunks)."""
+    updated in place (the state carried across chunks).
+
+    Two parallel loops per call, each walking all T steps inside: rows (the x solves of every
+    step, written to ``diff``), then columns (the y solve, the temporal low-pass and the
+    difference, in place in ``diff``). A parallel loop per step would cost a fork and a join
+    of the thread pool per step, which on a loaded machine (threads descheduled at the join)
+    made CSDVS 40-120x slower (issue 12). The arithmetic is the per-step kernel's, operation for
+    operation, so results are bit-identical to it."""
     t_steps, h, w = v.shape
-    tmp = np.empty((h, w))
-    target = np.empty((h, w))
-    for k in range(t_steps):
-        for y in prange(h):
-            _solve(v[k, y].astype(np.float64), tmp[y], inv_x, up_x, c)
-        for x in prange(w):
-            col = np.empty(h)
-            _solve(tmp[:, x].copy(), col, inv_y, up_y, c)
-            for y in range(h):
-                target[y, x] = col[y]
-        a = decay[k]
-        for y in prange(h):
+    for y in prange(h):
+        line = np.empty(w)
+        for k in range(t_steps):
             for x in range(w):
-                s = target[y, x] + a * (surround[y, x] - target[y, x])
-                surround[y, x] = s
-                diff[k, y, x] = v[k, y, x] - s
+                line[x] = np.float64(v[k, y, x])
+            _solve(line, diff[k, y], inv_x, up_x, c)
+    nblocks = (w + COLUMN_BLOCK - 1) // COLUMN_BLOCK
+    for b in prange(nblocks):
+        # COLUMN_BLOCK neighbouring columns at once, so that memory is read along rows; each
+        # column's arithmetic is that of _solve.
+        x0 = b * COLUMN_BLOCK
+        nx = min(w, x0 + COLUMN_BLOCK) - x0
+        col = np.empty((h, COLUMN_BLOCK))
+        d = np.empty(COLUMN_BLOCK)
+        for k in range(t_steps):
+            for j in range(nx):
+                d[j] = 0.0
+            for y in range(h):
+                for j in range(nx):
+                    d[j] = (diff[k, y, x0 + j] + c * d[j]) * inv_y[y]
+                    col[y, j] = d[j]
+            for y in range(h - 2, -1, -1):
+                for j in range(nx):
+                    col[y, j] = col[y, j] + up_y[y] * col[y + 1, j]
+            a = decay[k]
+            for y in range(h):
+                for j in range(nx):
+                    x = x0 + j
+                    target = col[y, j]
+                    s = target + a * (surround[y, x] - target)
+                    surround[y, x] = s
+                    diff[k, y, x] = np.float64(v[k, y, x]) - s
 
 
 class CenterSurroundEmulator:

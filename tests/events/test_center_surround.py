@@ -1,12 +1,15 @@
 """CSDVS: the diffuser preserves constants and decays at the resistive-line rate; a
-uniform flicker cancels with an instantaneous surround; chunking invariance."""
+uniform flicker cancels with an instantaneous surround; chunking invariance; the same events
+as the former per-step kernel, with the parallel loops opened once per chunk."""
 
+import hashlib
 import math
 
 import numpy as np
 import pytest
+from numba import njit
 
-from gevsim.events.center_surround import CenterSurroundEmulator
+from gevsim.events.center_surround import CenterSurroundEmulator, centre_minus_surround
 from gevsim.pixel import EventParams
 
 
@@ -57,3 +60,47 @@ def test_chunked_equals_one_shot():
 def test_bad_parameters(kw, match):
     with pytest.raises(ValueError, match=match):
         CenterSurroundEmulator((4, 4), EventParams(), rng=np.random.default_rng(0), **kw)
+
+
+def test_events_are_bit_identical_to_the_per_step_kernel():
+    """SHA-256 of the events and final surround of a three-chunk run, computed with the former
+    kernel (three parallel loops per step, commit fbb08e6) before the kernel was restructured."""
+    rng = np.random.default_rng(7)
+    h, w, n = 23, 31, 120
+    base = np.log(0.05 + rng.random((h, w)))
+    t = np.cumsum(rng.uniform(5e-6, 15e-6, n))
+    v = (base[None] + 0.3 * np.sin(2 * np.pi * 300 * t)[:, None, None] * rng.random((h, w))[None]
+         + np.cumsum(rng.normal(0, 0.02, (n, h, w)), axis=0)).astype(np.float32)
+    p = EventParams(threshold_mismatch_ln=0.02, refractory_s=1e-5)
+    em = CenterSurroundEmulator((h, w), p, surround_length_px=1.7, surround_tau_s=2e-4, rng=np.random.default_rng(3))
+    ev = np.concatenate([em.process(v[a:b], t[a:b]) for a, b in ((0, 1), (1, 40), (40, 120))])
+    digest = hashlib.sha256(ev.tobytes())
+    digest.update(em.surround.tobytes())
+    assert len(ev) == 634
+    assert digest.hexdigest() == "f1108b0460cecc1a18aa0054f9376a142200e1a7ce4b0c6e8f1f07d5a5e338f9"
+
+
+def _parallel_loops_inside_sequential_loops(kernel, *args):
+    """(number of top-level parallel loops, how many of them sit inside a sequential loop) of a
+    fresh parallel compilation of ``kernel``, from numba's parfor IR: a parallel loop inside a
+    loop forks and joins the thread pool on every iteration."""
+    from numba.core.analysis import compute_cfg_from_blocks
+    from numba.parfors.parfor import Parfor
+
+    compiled = njit(parallel=True)(kernel.py_func)
+    compiled(*args)
+    ir = compiled.get_metadata(compiled.signatures[0])["parfor_diagnostics"].func_ir
+    in_loops = set()
+    for loop in compute_cfg_from_blocks(ir.blocks).loops().values():
+        in_loops |= set(loop.body)
+    labels = [label for label, block in ir.blocks.items() for st in block.body if isinstance(st, Parfor)]
+    return len(labels), sum(label in in_loops for label in labels)
+
+
+def test_csdvs_opens_its_parallel_loops_once_per_chunk_not_per_step():
+    h, w, n = 5, 6, 3
+    em = CenterSurroundEmulator((h, w), EventParams(), rng=np.random.default_rng(0))
+    args = (np.zeros((n, h, w), np.float32), np.zeros(n), np.zeros((h, w)), *em._x, *em._y, em.c,
+            np.empty((n, h, w)))
+    total, per_step = _parallel_loops_inside_sequential_loops(centre_minus_surround, *args)
+    assert (total, per_step) == (2, 0)  # rows, then columns; the former kernel had 3 inside its loop over steps
