@@ -26,9 +26,11 @@ import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from gevsim.errors import ConfigError
 
+fcntl: Any
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX: no locks, leftovers are recognised by age alone
@@ -126,7 +128,7 @@ def remove_stale(target: str | os.PathLike) -> list[Path]:
 def sweep_stale(folder: str | os.PathLike, *, recursive: bool = True) -> list[Path]:
     """Remove every leftover stage under ``folder`` (:func:`is_stale`); returns what was removed."""
     folder = Path(folder)
-    removed = []
+    removed: list[Path] = []
     if not folder.is_dir():
         return removed
     for dirpath, dirnames, filenames in os.walk(folder):

@@ -38,8 +38,9 @@ import site
 import sys
 import sysconfig
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 from gevsim.errors import ConfigError
 from gevsim.render.manifest import SceneManifest
@@ -86,7 +87,8 @@ def _recording() -> Iterator[list]:
             sys.addaudithook(_audit)  # for the life of the process; it does nothing unless recording
             _hooked = True
     outer = getattr(_local, "found", None)
-    _local.found = found = []
+    found: list[str] = []
+    _local.found = found
     try:
         yield found
     finally:
@@ -165,8 +167,10 @@ def _source_constants(path: Path) -> list[str]:
     return [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)]
 
 
-def _import_builder(path: Path):
+def _import_builder(path: Path) -> Any:
     spec = importlib.util.spec_from_file_location(f"gevsim_scene_{path.stem}", path)
+    if spec is None or spec.loader is None:
+        raise ConfigError("not an importable Python file", source=str(path))
     module = importlib.util.module_from_spec(spec)
     try:
         spec.loader.exec_module(module)
@@ -177,7 +181,7 @@ def _import_builder(path: Path):
     return module
 
 
-def load_builder(path: Path):
+def load_builder(path: Path) -> Callable[[dict], dict]:
     """Import a scene builder file and return its ``build`` function."""
     return _import_builder(Path(path)).build
 
@@ -289,5 +293,5 @@ def scene_digest(scene: str | os.PathLike | SceneManifest) -> str:
     if not isinstance(scene, SceneManifest):
         from gevsim.render.manifest import load
 
-        scene = load(scene)
+        scene = load(scene if isinstance(scene, str) else Path(scene))
     return files_digest(scene_input_files(scene), base=Path(scene.builder).parent)
