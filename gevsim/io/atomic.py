@@ -115,6 +115,15 @@ def _remove(path: Path) -> None:
     log.info("removed %s, left by an interrupted run", path)
 
 
+def _try_remove(path: Path) -> bool:
+    try:
+        _remove(path)
+    except OSError as exc:  # a read-only folder: leave it, as before
+        log.info("cannot remove %s, left by an interrupted run (%s)", path, exc.strerror or exc)
+        return False
+    return not os.path.lexists(path)
+
+
 def remove_stale(target: str | os.PathLike) -> list[Path]:
     """Remove the leftover stages of ``target`` (:func:`is_stale`); returns what was removed."""
     target = Path(target)
@@ -122,8 +131,7 @@ def remove_stale(target: str | os.PathLike) -> list[Path]:
     with contextlib.suppress(OSError):
         for entry in os.scandir(target.parent):
             match = _STAGE.match(entry.name)
-            if match and match["name"] == target.name and is_stale(entry.path):
-                _remove(Path(entry.path))
+            if match and match["name"] == target.name and is_stale(entry.path) and _try_remove(Path(entry.path)):
                 removed.append(Path(entry.path))
     return removed
 
@@ -137,8 +145,7 @@ def sweep_stale(folder: str | os.PathLike, *, recursive: bool = True) -> list[Pa
     for dirpath, dirnames, filenames in os.walk(folder):
         for name in dirnames + filenames:
             path = Path(dirpath) / name
-            if _STAGE.match(name) and is_stale(path):
-                _remove(path)
+            if _STAGE.match(name) and is_stale(path) and _try_remove(path):
                 removed.append(path)
         dirnames[:] = [d for d in dirnames if recursive and not _STAGE.match(d)]
     return removed
