@@ -272,6 +272,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     from gevsim.experiments.executors import make_executor
     from gevsim.experiments.report import comparison_table, write_study_outputs
     from gevsim.experiments.study import check_study_scenes, load_study, run_study
+    from gevsim.io import exclusive
 
     study = load_study(args.config)
     base = dict(study.base)
@@ -291,14 +292,15 @@ def cmd_study(args: argparse.Namespace) -> int:
     study = dataclasses.replace(study, base=base)
     check_study_scenes(study)
     _quiet_dask(args)
-    with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
-        update, close = _progress(f"study {study.name}", not args.quiet, unit="job")
-        try:
-            rows = run_study(study, args.out, cache_dir=args.cache, executor=executor, progress=update,
-                             keep_files=args.keep_files)
-        finally:
-            close()
-    report = write_study_outputs(args.out, study, rows)
+    with exclusive(args.out, what="study"):  # a second study on this folder is refused before any work
+        with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
+            update, close = _progress(f"study {study.name}", not args.quiet, unit="job")
+            try:
+                rows = run_study(study, args.out, cache_dir=args.cache, executor=executor, progress=update,
+                                 keep_files=args.keep_files)
+            finally:
+                close()
+        report = write_study_outputs(args.out, study, rows)
     print(comparison_table(rows, study))
     print(f"gevsim: {len(rows)} runs x {study.base['repeats']} repeats; report {report}", file=sys.stderr)
     return 0
@@ -330,6 +332,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
 
     from gevsim.experiments.dataset import generate, load_dataset_config
     from gevsim.experiments.executors import make_executor
+    from gevsim.io import exclusive
 
     config = load_dataset_config(args.config)
     changes: dict = {}
@@ -341,7 +344,8 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         changes["emulators"] = names
     config = dataclasses.replace(config, **changes)
     _quiet_dask(args)
-    with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
+    with exclusive(args.out, what="dataset"), \
+            make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
         update, close = _progress("dataset", not args.quiet, unit="seq")
         try:
             summary = generate(config, args.out, executor=executor, cache_dir=args.cache, progress=update)

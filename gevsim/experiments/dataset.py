@@ -47,7 +47,7 @@ from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.experiments.executors import run_all
-from gevsim.io import EventReader, atomic_write_text, export_evreal, sweep_stale
+from gevsim.io import EventReader, atomic_write_text, exclusive, export_evreal, sweep_stale
 from gevsim.reconstruct.tonemap import ToneMap
 from gevsim.render.quality import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -288,12 +288,18 @@ def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.
 
     ``executor`` None runs them here, one after another; ``progress(done, total)``
     is called as each completes (finished ones count at once). One run at a
-    time per ``out_dir``: concurrent runs into the same folder are not supported.
+    time per ``out_dir``: a second one (another process) is refused with a
+    :class:`~gevsim.errors.ConfigError` naming the folder (:func:`gevsim.io.exclusive`).
     Returns ``out``, ``sequences``, ``done`` (made now), ``skipped``, ``counts``
     (events per stream over ``indices``), ``events`` (their sum) and ``seconds``.
     """
-    start = time.perf_counter()
     out = Path(out_dir)
+    with exclusive(out, what="dataset"):  # one run at a time per folder: a second one is refused
+        return _generate(config, out, executor=executor, indices=indices, cache_dir=cache_dir, progress=progress)
+
+
+def _generate(config: DatasetConfig, out: Path, *, executor, indices, cache_dir, progress) -> dict:
+    start = time.perf_counter()
     sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     indices = list(dict.fromkeys(range(config.sequences) if indices is None else indices))
     for i in indices:

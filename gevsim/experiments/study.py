@@ -77,7 +77,7 @@ from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.experiments.executors import run_all
-from gevsim.io import atomic_path, sweep_stale
+from gevsim.io import atomic_path, exclusive, sweep_stale
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -296,11 +296,18 @@ def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathL
     executor (:func:`gevsim.experiments.executors.make_executor`) runs them in its workers, one numba
     thread each, after the bases are rendered here once into ``cache_dir`` (default
     ``out/render-cache``). The numbers do not depend on the executor. ``progress(done, total)``
-    counts jobs. One study at a time per ``out``.
+    counts jobs. One study at a time per ``out``: a second one (another process) is refused with a
+    :class:`~gevsim.errors.ConfigError` naming the folder (:func:`gevsim.io.exclusive`).
     """
+    out = Path(out)
+    with exclusive(out, what="study"):  # one study at a time per folder: a second one is refused
+        return _run_study(study, out, cache_dir=cache_dir, executor=executor, progress=progress,
+                          keep_files=keep_files)
+
+
+def _run_study(study: Study, out: Path, *, cache_dir, executor, progress, keep_files) -> list[dict]:
     from gevsim.experiments import repeat as rep
 
-    out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     jobs = run_jobs(study)

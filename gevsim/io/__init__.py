@@ -1,7 +1,16 @@
 """File formats: HDF5 event files, EVREAL folders, text events, OpenEXR images, frame sequences,
 atomic writes."""
 
-from gevsim.io.atomic import MANIFEST, Staged, atomic_dir, atomic_path, atomic_write_text, remove_stale, sweep_stale
+from gevsim.io.atomic import (
+    MANIFEST,
+    Staged,
+    atomic_dir,
+    atomic_path,
+    atomic_write_text,
+    exclusive,
+    remove_stale,
+    sweep_stale,
+)
 from gevsim.io.evreal import export_evreal, import_evreal
 from gevsim.io.exr import read_exr, read_exr_layers, write_exr, write_exr_layers
 from gevsim.io.frames import load_evreal_frames, load_frame_folder, load_video
@@ -16,6 +25,7 @@ __all__ = [
     "atomic_dir",
     "atomic_path",
     "atomic_write_text",
+    "exclusive",
     "export_evreal",
     "export_text",
     "import_evreal",

@@ -23,6 +23,7 @@ import os
 import re
 import shutil
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -43,6 +44,10 @@ MANIFEST = "manifest.json"
 #: What every stage name carries after ``.<target name>.``.
 TAG = "gevsim-"
 _STAGE = re.compile(r"^\.(?P<name>.+)\." + TAG + r"[a-z0-9_]{8}(?P<suffix>\.[A-Za-z0-9_]+)?$")
+#: The lock file of an output folder that one run at a time writes (:func:`exclusive`).
+LOCK_NAME = ".gevsim.lock"
+_held_lock = threading.Lock()
+_held: dict[str, list] = {}  # folder -> [descriptor, depth]: this process's locks
 #: An unlocked stage younger than this is left alone: a new stage is locked within microseconds of
 #: being created, and this margin covers that instant.
 GRACE_S = 1.0
@@ -112,6 +117,15 @@ def _remove(path: Path) -> None:
     log.info("removed %s, left by an interrupted run", path)
 
 
+def _try_remove(path: Path) -> bool:
+    try:
+        _remove(path)
+    except OSError as exc:  # a read-only folder: leave it, as before
+        log.info("cannot remove %s, left by an interrupted run (%s)", path, exc.strerror or exc)
+        return False
+    return not os.path.lexists(path)
+
+
 def remove_stale(target: str | os.PathLike) -> list[Path]:
     """Remove the leftover stages of ``target`` (:func:`is_stale`); returns what was removed."""
     target = Path(target)
@@ -119,8 +133,7 @@ def remove_stale(target: str | os.PathLike) -> list[Path]:
     with contextlib.suppress(OSError):
         for entry in os.scandir(target.parent):
             match = _STAGE.match(entry.name)
-            if match and match["name"] == target.name and is_stale(entry.path):
-                _remove(Path(entry.path))
+            if match and match["name"] == target.name and is_stale(entry.path) and _try_remove(Path(entry.path)):
                 removed.append(Path(entry.path))
     return removed
 
@@ -134,8 +147,7 @@ def sweep_stale(folder: str | os.PathLike, *, recursive: bool = True) -> list[Pa
     for dirpath, dirnames, filenames in os.walk(folder):
         for name in dirnames + filenames:
             path = Path(dirpath) / name
-            if _STAGE.match(name) and is_stale(path):
-                _remove(path)
+            if _STAGE.match(name) and is_stale(path) and _try_remove(path):
                 removed.append(path)
         dirnames[:] = [d for d in dirnames if recursive and not _STAGE.match(d)]
     return removed
@@ -248,3 +260,55 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to ``path`` atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(text)
+
+
+@contextlib.contextmanager
+def exclusive(folder: str | os.PathLike, *, what: str = "run") -> Iterator[Path]:
+    """Hold ``folder``'s lock file (:data:`LOCK_NAME`, created with the folder) for the block: one
+    gevsim run at a time writes into an output folder. A second process is refused at once with a
+    :class:`~gevsim.errors.ConfigError` naming the folder (and the holder's process id); the same
+    process may enter again (a study's run and its report). The lock dies with its process, kill -9
+    included, so nothing needs cleaning up.
+    """
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot write here ({exc.strerror or exc})", source=str(folder)) from None
+    key = os.path.realpath(folder)
+    with _held_lock:
+        mine = _held.get(key)
+        if mine is not None:
+            mine[1] += 1
+    if mine is None:
+        lock = folder / LOCK_NAME
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:
+            raise ConfigError(f"cannot write here ({exc.strerror or exc})", source=str(folder)) from None
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                holder = ""
+                with contextlib.suppress(OSError, ValueError):
+                    holder = f" (process {int(os.pread(fd, 32, 0).split()[0])})"
+                os.close(fd)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+                    raise ConfigError(f"cannot lock {LOCK_NAME} ({exc.strerror or exc})", source=str(folder)) from None
+                raise ConfigError(f"another gevsim {what} is writing into this folder{holder}; wait for it to "
+                                  "finish or choose another --out", source=str(folder)) from None
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        with _held_lock:
+            _held[key] = [fd, 1]
+    try:
+        yield folder
+    finally:
+        with _held_lock:
+            entry = _held[key]
+            entry[1] -= 1
+            if entry[1] == 0:
+                del _held[key]
+                os.close(entry[0])

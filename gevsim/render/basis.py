@@ -299,8 +299,13 @@ def render_basis(
     with the numbers.
     """
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    cache.mkdir(parents=True, exist_ok=True)
-    sweep_stale(cache, recursive=False)  # renders killed half way (other processes' live ones are locked)
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+        writable = True
+        sweep_stale(cache, recursive=False)  # renders killed half way (other processes' live ones are locked)
+    except OSError as exc:
+        log.warning("render cache %s cannot be made (%s); rendering without caching", cache, exc.strerror or exc)
+        writable = False
     m = scene.manifest
     r = m.render
     times = scene.pose_times() if times_s is None else np.asarray(times_s, float)
@@ -322,8 +327,8 @@ def render_basis(
         pose = scene.pose_at(float(t))
         key = cache_key(scene, pose)
         path = cache / f"{key}.exr"
-        cached = _read_cached(path, groups)
-        if cached is not None and serves(cached[3], cached[2], request):
+        cached = _read_cached(path, groups, (r.height, r.width))
+        if cached is not None and _serves(path, cached, request):
             mean, err, _, meta = cached
             quality.append(meta["report"])
         else:
@@ -342,7 +347,13 @@ def render_basis(
                     "mixtures": request["mixtures"].tolist(), "floor_rel": request["floor_rel"],
                     "metric": request["metric"], "time_budget_s": request["time_budget_s"],
                     "sampler": r.sampler, "one_pass": scene.one_pass, "denoised": bool(r.denoise)}
-            write_exr_layers(path, layers, metadata=meta)
+            if writable:
+                try:
+                    write_exr_layers(path, layers, metadata=meta)
+                except (OSError, ConfigError) as exc:  # read-only or full: the run goes on, uncached
+                    log.warning("cannot write to the render cache %s (%s); going on without caching", cache,
+                                getattr(exc, "strerror", None) or exc)
+                    writable = False
         images.append(mean)
         noise.append(err)
         keys.append(key)
@@ -379,8 +390,9 @@ def _value_range(waveform: Waveform, group: str) -> tuple[float, float]:
     return value_range
 
 
-def _read_cached(path: Path, groups: tuple[str, ...]):
-    """(mean, noise, se_map, meta) of a cached pose, or None when absent or unreadable."""
+def _read_cached(path: Path, groups: tuple[str, ...], shape: tuple[int, int]):
+    """(mean, noise, se_map, meta) of a cached pose, or None when absent; a file that is unreadable or not
+    what :func:`render_basis` writes (truncated, foreign, non-finite, another size) is logged and re-rendered."""
     if not path.exists():
         return None
     try:
@@ -388,9 +400,24 @@ def _read_cached(path: Path, groups: tuple[str, ...]):
         mean = np.stack([layers[f"group{k}"] for k in range(len(groups))])
         err = np.stack([layers[f"noise{k}"] for k in range(len(groups))])
         se_map = layers["se_ln"][..., 0]
+        if mean.shape[1:3] != shape or mean.shape[3] not in (1, 3) or err.shape != mean.shape or se_map.shape != shape:
+            raise ValueError(f"images of {mean.shape[2]}x{mean.shape[1]} px, expected {shape[1]}x{shape[0]}")
+        if not (np.isfinite(mean).all() and np.isfinite(err).all()):
+            raise ValueError("non-finite pixels")
+        if meta.get("groups") != list(groups):
+            raise ValueError(f"light groups {meta.get('groups')!r}, expected {list(groups)!r}")
+        summarize_quality([meta["report"]])  # the record every output copies: complete, of the right types
+        int(meta["spp"])
     except Exception as exc:  # a corrupt or foreign file is re-rendered, not fatal
-        log.warning("cache file %s is unreadable (%s); rendering again", path, exc)
-        return None
-    if meta.get("groups") != list(groups) or "report" not in meta:
+        log.warning("cache file %s is unusable (%s); rendering again", path, exc)
         return None
     return mean, err, se_map, meta
+
+
+def _serves(path: Path, cached: tuple, request: dict) -> bool:
+    """:func:`serves`, with a cached record it cannot judge counted as unusable (logged, re-rendered)."""
+    try:
+        return serves(cached[3], cached[2], request)
+    except Exception as exc:
+        log.warning("cache file %s is unusable (%s); rendering again", path, exc)
+        return False

@@ -225,3 +225,22 @@ def test_a_rerun_removes_what_killed_runs_left(reference, tmp_path):
         os.utime(p, (p.stat().st_mtime - 60,) * 2)
     assert generate(config, out, cache_dir=cache)["done"] == 0
     assert not any(p.exists() for p in left) and not list(out.rglob("*gevsim-*"))
+
+
+def test_a_second_dataset_run_on_the_same_folder_is_refused(tmp_path, capsys):
+    import subprocess
+    import sys
+
+    holder_code = ("import sys, time\nfrom gevsim.io import exclusive\nwith exclusive(sys.argv[1]):\n"
+                   "    print('holding', flush=True)\n    time.sleep(600)\n")
+    out = tmp_path / "out"
+    holder = subprocess.Popen([sys.executable, "-c", holder_code, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "holding"
+        assert main(["dataset", str(write_config(tmp_path)), "--out", str(out), "--workers", "1", "-q"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{out}: another gevsim dataset is writing into this folder" in err
+        assert sorted(p.name for p in out.iterdir()) == [".gevsim.lock"]
+    finally:
+        holder.kill()
+        holder.wait()

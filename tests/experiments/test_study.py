@@ -10,6 +10,7 @@ from conftest import textured_scene
 
 import gevsim.experiments.study as study_mod
 from gevsim.cli import main
+from gevsim.errors import ConfigError
 from gevsim.experiments import repeat as repeat_mod
 from gevsim.experiments.executors import make_executor
 from gevsim.experiments.study import load_study, run_study
@@ -213,3 +214,33 @@ def test_executors_give_the_serial_results_bit_for_bit(tmp_path, kind):
     assert _rows(parallel) == _rows(serial)
     assert _records(tmp_path / "parallel") == _records(tmp_path / "serial")
     assert (tmp_path / "parallel" / "render-cache").is_dir()
+
+
+HOLDER = """
+import sys, time
+from gevsim.io import exclusive
+with exclusive(sys.argv[1], what="study"):
+    print("holding", flush=True)
+    time.sleep(600)
+"""
+
+
+def test_a_second_study_on_the_same_folder_is_refused_with_one_line(tmp_path, capsys):
+    import subprocess
+    import sys
+
+    cfg, out = write_study(tmp_path), tmp_path / "out"
+    holder = subprocess.Popen([sys.executable, "-c", HOLDER, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "holding"  # a study is running in another process
+        assert main(["study", str(cfg), "--out", str(out), "--cache", str(tmp_path / "c"), "-q"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{out}: another gevsim study is writing into this folder" in err
+        assert f"(process {holder.pid})" in err
+        assert sorted(p.name for p in out.iterdir()) == [".gevsim.lock"] and not (tmp_path / "c").exists()
+        with pytest.raises(ConfigError, match="another gevsim study"):
+            run_study(load_study(cfg), out, cache_dir=tmp_path / "c")
+    finally:
+        holder.kill()  # kill -9: the lock goes with the process
+        holder.wait()
+    assert main(["study", str(cfg), "--out", str(out), "--cache", str(tmp_path / "c"), "-q"]) == 0
