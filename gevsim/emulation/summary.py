@@ -12,10 +12,9 @@ import numpy as np
 
 from gevsim.emulation import layout
 from gevsim.events.statistics import event_probability, event_rates
-from gevsim.io import EventReader
+from gevsim.io import EventReader, hdf5
 
-BATCH_FRAMES = 64
-WINDOW_US = 100_000  # events counted 0.1 s at a time
+BATCH_FRAMES = 64  # frame intervals per read at most (fewer when they hold more than hdf5.WINDOW_EVENTS events)
 
 __all__ = ["RunSummary", "StreamStats", "summarize"]
 
@@ -89,6 +88,22 @@ class StreamStats(_Fields):
     event_probability: float
 
 
+def _frame_batches(r: EventReader, stream: str, frame_t: np.ndarray) -> list[tuple[int, int]]:
+    """Consecutive runs ``(a, b)`` of frame intervals (frame_t[a], frame_t[b]], each of at most
+    BATCH_FRAMES intervals and hdf5.WINDOW_EVENTS events (one interval however many it holds)."""
+    if len(frame_t) < 2:
+        return []
+    lo, hi = r.index_bounds(stream, np.asarray(frame_t, np.int64) + 1)
+    out, a = [], 0
+    while a < len(frame_t) - 1:
+        b = a + 1
+        while b + 1 < len(frame_t) and b - a < BATCH_FRAMES and hi[b + 1] - lo[a] <= hdf5.WINDOW_EVENTS:
+            b += 1
+        out.append((a, b))
+        a = b
+    return out
+
+
 def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT) -> dict[str, StreamStats]:
     """Per stream: event count, rates (total, per polarity/axis, per pixel) and the mean
     event probability per ground-truth frame interval as Lehtonen et al. count it."""
@@ -99,16 +114,16 @@ def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT)
         frame_t = r.array(f"/frames/{frames}/t") if frames in r.frame_names else np.zeros(0, np.int64)
         for stream in r.streams:
             probabilities = []
-            for a in range(0, max(len(frame_t) - 1, 0), BATCH_FRAMES):
-                ft = frame_t[a:a + BATCH_FRAMES + 1]
+            for a, b in _frame_batches(r, stream, frame_t):
+                ft = frame_t[a:b + 1]
                 # Events in (ft[0], ft[-1]]: read [ft[0] + 1, ft[-1] + 1) in microseconds.
                 ev = r.read(stream, int(ft[0]) + 1, int(ft[-1]) + 1)
                 probabilities.append(event_probability(ev, ft, width=w, height=h))
-            # Rates from windows of WINDOW_US, so memory stays bounded for any duration.
+            # Rates from windows of at most hdf5.WINDOW_EVENTS events, so memory stays bounded.
             totals: dict[str, float] = {}
             count = 0
-            for start in range(0, int(r.t_end_us) + 1, WINDOW_US):
-                ev = r.read(stream, start, start + WINDOW_US)
+            for start, end in r.windows(stream, 0, int(r.t_end_us) + 1):
+                ev = r.read(stream, start, end)
                 count += len(ev)
                 for key, rate in event_rates(ev, 1.0).items():  # per second of 1 s = counts
                     totals[key] = totals.get(key, 0.0) + rate

@@ -58,6 +58,17 @@ def _stream(r: EventReader, emulator: str) -> str:
     return stream
 
 
+def _windows(r: EventReader, stream: str, t_us) -> list[list[tuple[int, int]]]:
+    """Per frame k the read windows covering the events in (t_us[k-1], t_us[k]] (from t = 0 for
+    k = 0), each of at most :data:`~gevsim.io.hdf5.WINDOW_EVENTS` events: methods read the
+    stream window by window, so memory is bounded whatever the duration."""
+    out, start = [], 0
+    for t in t_us:
+        out.append(r.windows(stream, start, int(t) + 1))
+        start = max(start, int(t) + 1)
+    return out
+
+
 def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:
     """Decode ``emulator``'s gradient events up to each frame and solve with ``solver``."""
     def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
@@ -66,13 +77,10 @@ def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarra
         state = r.array(layout.initial_state_key(emulator)).astype(np.int8)
         reconstructor = GradientReconstructor(gt.shape[1:], theta, rc=rc, method=solver, c=c)
         frames = np.empty_like(gt)
-        previous = None
-        for k, t in enumerate(t_us):
-            start = None if previous is None else previous + 1
-            events = r.read(stream, start, int(t) + 1)  # events in (previous frame, this frame]
-            state = decode(events, state)
+        for k, windows in enumerate(_windows(r, stream, t_us)):
+            for a, b in windows:
+                state = decode(r.read(stream, a, b), state)
             frames[k] = reconstructor.frame(state)
-            previous = int(t)
         return frames
     return run
 
@@ -88,37 +96,51 @@ def _contrast(r: EventReader, contrast_ln: float | None) -> tuple[float, float]:
     return on, off
 
 
-def _brightness(integrate: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
-    """Integrate the DVS events up to the last frame with ``integrate(r, events, t_us, (h, w), on, off)``."""
+def _brightness(make: Callable[..., brightness.EventFilter]) -> Callable[..., np.ndarray]:
+    """Feed the DVS events, window by window, to the filter ``make(r, t0_us, (h, w), on, off)``
+    and take its estimate at each frame time."""
     def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
         on, off = _contrast(r, contrast_ln)
-        events = r.read(_stream(r, "dvs"), None, int(t_us[-1]) + 1)
-        frames = integrate(r, events, t_us, gt.shape[1:], on, off)
+        stream = _stream(r, "dvs")
+        t_us = np.asarray(t_us, np.int64)
+        first = r.first_t_us(stream)
+        t0 = int(t_us[0]) if first is None or first > t_us[-1] else min(int(t_us[0]), first)
+        filt = make(r, t0, gt.shape[1:], on, off)
+        frames = np.empty(gt.shape)
+        for k, windows in enumerate(_windows(r, stream, t_us)):
+            for a, b in windows:
+                filt.feed(r.read(stream, a, b), until_us=b - 1)
+            filt.estimate(int(t_us[k]), frames[k])
         if not is_log:  # frame mode compares intensities
             frames = np.exp(frames) - 1.0 / 255
-        return np.asarray(frames, np.float64)
+        return frames
     return run
 
 
-def _direct(r, events, t_us, shape, on, off):  # events only: starts from a flat image, like the filters
+def _direct(r, t0, shape, on, off):  # events only: starts from a flat image, like the filters
     h, w = shape
-    return brightness.direct_integration(events, t_us, width=w, height=h, contrast_on_ln=on, contrast_off_ln=off)
+    return brightness.EventFilter(width=w, height=h, contrast_on_ln=on, contrast_off_ln=off, t0_us=t0)
 
 
-def _high_pass(r, events, t_us, shape, on, off):
+def _high_pass(r, t0, shape, on, off):
     h, w = shape
-    return brightness.high_pass_filter(events, t_us, width=w, height=h, contrast_on_ln=on, contrast_off_ln=off)
+    return brightness.EventFilter(width=w, height=h, contrast_on_ln=on, contrast_off_ln=off,
+                                  cutoff_rad_s=brightness.HIGH_PASS_CUTOFF_RAD_S, t0_us=t0)
 
 
-def _complementary(r, events, t_us, shape, on, off):
+def _complementary(r, t0, shape, on, off):
     h, w = shape
     if layout.APS not in r.frame_names:
         raise ConfigError("the complementary filter needs APS frames: emulate with aps = true", source=str(r.path))
     aps, aps_t = r.frames(layout.APS)
     offset = float(r.array_attrs(f"/frames/{layout.APS}").get("offset_dn", 0.0))
     aps_log = np.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
-    return brightness.complementary_filter(events, aps_log, aps_t, t_us, width=w, height=h, contrast_on_ln=on,
-                                           contrast_off_ln=off)
+    aps_t = np.asarray(aps_t, np.int64)
+    if aps_t.size:
+        t0 = min(t0, int(aps_t[0]))
+    return brightness.EventFilter(width=w, height=h, contrast_on_ln=on, contrast_off_ln=off,
+                                  cutoff_rad_s=brightness.COMPLEMENTARY_CUTOFF_RAD_S, frames_log=aps_log,
+                                  frames_t_us=aps_t, initial=aps_log[0], t0_us=t0)
 
 
 #: Reconstruction methods by their full name.

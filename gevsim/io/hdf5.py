@@ -37,6 +37,8 @@ log = logging.getLogger(__name__)
 
 FORMAT = "gevsim-events-1"
 CHUNK = 2**16
+#: Default bound on the events of one window of :meth:`EventReader.windows` (~13 MiB of brightness events).
+WINDOW_EVENTS = 2**20
 _STANDARD = {"events": BRIGHTNESS_DTYPE, "gradient_events": GRADIENT_DTYPE}
 _RESERVED_ATTRS = {"width", "height", "config_toml", "seed", "gevsim_version", "format", "complete", "t_end_us"}
 
@@ -286,6 +288,7 @@ class EventReader:
         if not attrs.get("complete", False):
             self._file.close()
             raise ConfigError("incomplete gevsim event file: the writer did not finish", source=src)
+        self._ms_cache: dict[str, np.ndarray] = {}
 
     def __enter__(self) -> EventReader:
         return self
@@ -330,6 +333,60 @@ class EventReader:
 
     def ms_to_idx(self, stream: str = "events") -> np.ndarray:
         return self._stream(stream)["ms_to_idx"][:]
+
+    def count(self, stream: str = "events") -> int:
+        """Number of events in ``stream``."""
+        return int(self._stream(stream)["t"].shape[0])
+
+    def first_t_us(self, stream: str = "events") -> int | None:
+        """Timestamp (us) of the first event of ``stream``; None if it has none."""
+        t = self._stream(stream)["t"]
+        return int(t[0]) if t.shape[0] else None
+
+    def index_bounds(self, stream: str, t_us) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds ``(lo, hi)`` on the index of the first event of ``stream`` with time >= each of
+        ``t_us`` (>= 0), from ``ms_to_idx`` alone (exact at whole milliseconds): ``hi[j] - lo[i]``
+        bounds the number of events in ``[t_us[i], t_us[j])``."""
+        t = np.asarray(t_us, dtype=np.int64)
+        if t.size and t.min() < 0:
+            raise ValueError(f"times must be >= 0 us, got {int(t.min())} us")
+        if stream not in self._ms_cache:
+            self._ms_cache[stream] = self.ms_to_idx(stream)
+        ms, n = self._ms_cache[stream], self.count(stream)
+        if not len(ms):
+            return np.zeros(t.shape, np.int64), np.full(t.shape, n, np.int64)
+        lo = ms[np.minimum(t // 1000, len(ms) - 1)]
+        k = -(-t // 1000)
+        hi = np.where(k < len(ms), ms[np.minimum(k, len(ms) - 1)], n)
+        return lo.astype(np.int64), hi.astype(np.int64)
+
+    def windows(self, stream: str, t_start_us: int, t_end_us: int, *,
+                max_events: int | None = None) -> list[tuple[int, int]]:
+        """Consecutive time windows ``[a, b)`` (us) covering ``[t_start_us, t_end_us)``, each holding
+        at most ``max_events`` events of ``stream`` (judged from ``ms_to_idx``, so inner
+        boundaries fall on whole milliseconds: a millisecond holding more events is one window).
+        Reading a stream window by window bounds memory whatever the duration or event rate.
+        ``max_events`` defaults to :data:`WINDOW_EVENTS` (read at the call)."""
+        if max_events is None:
+            max_events = WINDOW_EVENTS
+        if not isinstance(max_events, int | np.integer) or max_events < 1:
+            raise ValueError(f"max_events must be a positive integer, got {max_events!r}")
+        t0, t1 = int(t_start_us), int(t_end_us)
+        if t1 <= t0:
+            return []
+        lo, hi = self.index_bounds(stream, [t0, t1])
+        ms, top = self._ms_cache[stream], int(hi[1])
+        out, a, base = [], t0, int(lo[0])
+        while a < t1:
+            if top - base <= max_events:
+                b = t1
+            else:  # the furthest whole millisecond that keeps the window within max_events
+                b = (int(np.searchsorted(ms, base + max_events, side="right")) - 1) * 1000
+                b = min(max(b, (a // 1000 + 1) * 1000), t1)
+            out.append((a, b))
+            a = b
+            base = int(self.index_bounds(stream, [a])[0][0])
+        return out
 
     def read(self, stream: str = "events", t_start_us: int | None = None, t_end_us: int | None = None) -> np.ndarray:
         """Events of ``stream`` with ``t_start_us <= t < t_end_us`` (``None``: unbounded)."""

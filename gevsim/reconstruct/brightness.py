@@ -50,39 +50,45 @@ _INF = np.iinfo(np.int64).max
 
 
 @njit(cache=True)
-def _filter(ex, ey, et, ec, frames, frame_t, out_t, state, last, alpha):
-    """Exact event/frame-driven first-order filter; ``state``/``last`` (H, W) are updated in place."""
-    n, nf, m = et.shape[0], frame_t.shape[0], out_t.shape[0]
+def _advance(ex, ey, et, ec, frames, frame_t, jf, until, state, last, alpha):
+    """Apply the events (all with t <= ``until``) and the reference frames with t <= ``until``
+    in time order (a frame before an event at the same time); ``state``/``last`` (H, W) are
+    updated in place. ``jf`` frames were applied before; returns the new count."""
+    n, nf = et.shape[0], frame_t.shape[0]
     h, w = state.shape
-    out = np.empty((m, h, w))
-    ref = frames[0]
-    ie, jf = 0, 0
-    for k in range(m):
-        tout = out_t[k]
-        while True:
-            te = et[ie] if ie < n else _INF
-            tf = frame_t[jf] if jf < nf else _INF
-            if te > tout and tf > tout:
-                break
-            if tf <= te:  # new reference: bring every pixel to tf first
-                for y in range(h):
-                    for x in range(w):
-                        b = math.exp(-alpha * (tf - last[y, x]) * 1e-6)
-                        state[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b
-                        last[y, x] = tf
-                ref = frames[jf]
-                jf += 1
-            else:
-                x, y = ex[ie], ey[ie]
-                b = math.exp(-alpha * (te - last[y, x]) * 1e-6)
-                state[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b + ec[ie]
-                last[y, x] = te
-                ie += 1
-        for y in range(h):
-            for x in range(w):
-                b = math.exp(-alpha * (tout - last[y, x]) * 1e-6)
-                out[k, y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b
-    return out
+    ref = frames[jf - 1] if jf > 0 else frames[0]
+    ie = 0
+    while True:
+        te = et[ie] if ie < n else _INF
+        tf = frame_t[jf] if jf < nf else _INF
+        if te > until and tf > until:
+            break
+        if tf <= te:  # new reference: bring every pixel to tf first
+            for y in range(h):
+                for x in range(w):
+                    b = math.exp(-alpha * (tf - last[y, x]) * 1e-6)
+                    state[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b
+                    last[y, x] = tf
+            ref = frames[jf]
+            jf += 1
+        else:
+            x, y = ex[ie], ey[ie]
+            b = math.exp(-alpha * (te - last[y, x]) * 1e-6)
+            state[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b + ec[ie]
+            last[y, x] = te
+            ie += 1
+    return jf
+
+
+@njit(cache=True)
+def _estimate(frames, jf, tout, state, last, alpha, out):
+    """The estimate at ``tout`` (every event and frame up to it applied) into ``out`` (H, W)."""
+    h, w = state.shape
+    ref = frames[jf - 1] if jf > 0 else frames[0]
+    for y in range(h):
+        for x in range(w):
+            b = math.exp(-alpha * (tout - last[y, x]) * 1e-6)
+            out[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b
 
 
 def _check_times(t, name):
@@ -113,19 +119,90 @@ def _unpack(events, width, height, c_on, c_off):
     return x, y, t, c
 
 
+class EventFilter:
+    """The exact filter of this module, fed events window by window (bounded memory).
+
+    Feed every event in time order with :meth:`feed` (each window's events up to a time
+    ``until_us``, the next window's after it), and read the estimate at any time up to the
+    last ``until_us`` with :meth:`estimate`. Cutting the events into windows does not change
+    the result, bit for bit.
+
+    Parameters
+    ----------
+    width, height : sensor size in pixels.
+    contrast_on_ln, contrast_off_ln : contrast step of an ON / OFF event (ln units).
+    cutoff_rad_s : relaxation rate alpha (rad/s); 0 integrates.
+    frames_log, frames_t_us : references (K, H, W) in ln units from their times (K,) in us
+        (default: none, R = 0).
+    initial : (H, W) state at ``t0_us`` (default zeros).
+    t0_us : time (us) of ``initial``: no later than the first event, frame or estimate.
+    """
+
+    def __init__(self, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN, cutoff_rad_s=0.0,
+                 frames_log=None, frames_t_us=None, initial=None, t0_us: int):
+        self.width, self.height = size(width, height)
+        self.c_on, self.c_off = _contrasts(contrast_on_ln, contrast_off_ln)
+        self.alpha = real(cutoff_rad_s, "cutoff_rad_s", low=0.0)
+        shape = (self.height, self.width)
+        if frames_log is None:
+            self.frames, self.frames_t = np.zeros((1, *shape)), np.zeros(0, dtype=np.int64)
+        else:
+            self.frames_t = _check_times(frames_t_us, "frames_t_us")
+            self.frames = np.ascontiguousarray(frames_log, dtype=np.float64)
+            if self.frames.shape != (self.frames_t.size, *shape):
+                raise ValueError(f"frames_log must have shape ({self.frames_t.size}, {self.height}, {self.width}) "
+                                 f"to match frames_t_us, got {self.frames.shape}")
+            real_array(self.frames, "frames_log")
+        self.state = np.zeros(shape) if initial is None else np.array(initial, dtype=np.float64)
+        if self.state.shape != shape:
+            raise ValueError(f"initial must have the shape {shape} of the sensor, got {self.state.shape}")
+        real_array(self.state, "initial")
+        self.last = np.full(shape, int(t0_us), dtype=np.int64)
+        self.applied_frames = 0
+        self.until_us: int | None = None
+
+    def feed(self, events, *, until_us: int) -> None:
+        """Apply ``events`` (BRIGHTNESS_DTYPE, sorted, all with ``t <= until_us`` and after the
+        previous window's ``until_us``) and the reference frames up to ``until_us``."""
+        self._feed(*_unpack(events, self.width, self.height, self.c_on, self.c_off), until_us)
+
+    def _feed(self, x, y, t, c, until_us) -> None:
+        until_us = int(until_us)
+        if self.until_us is not None and until_us < self.until_us:
+            raise ValueError(f"until_us={until_us} us goes back before the previous window's {self.until_us} us")
+        if t.size and (t[-1] > until_us or (self.until_us is not None and t[0] <= self.until_us)):
+            raise ValueError(f"events from t={int(t[0])} to {int(t[-1])} us fall outside the window "
+                             f"({self.until_us}, {until_us}] us")
+        self.applied_frames = _advance(x, y, t, c, self.frames, self.frames_t, self.applied_frames, until_us,
+                                       self.state, self.last, self.alpha)
+        self.until_us = until_us
+
+    def estimate(self, t_us: int, out: np.ndarray | None = None) -> np.ndarray:
+        """The (H, W) log estimate at ``t_us`` (from the events fed; ``t_us`` no later than the
+        last window's ``until_us``, and no event after ``t_us`` fed yet)."""
+        if out is None:
+            out = np.empty((self.height, self.width))
+        _estimate(self.frames, self.applied_frames, int(t_us), self.state, self.last, self.alpha, out)
+        return out
+
+
 def _run(events, frame_t_us, frames, frames_t, width, height, c_on, c_off, alpha, initial):
     width, height = size(width, height)
     out_t = _check_times(frame_t_us, "frame_t_us")
     x, y, t, c = _unpack(events, width, height, c_on, c_off)
-    state = np.zeros((height, width)) if initial is None else np.array(initial, dtype=np.float64)
-    if state.shape != (height, width):
-        raise ValueError(f"initial must have the shape ({height}, {width}) of the sensor, got {state.shape}")
-    real_array(state, "initial")
     t0 = min(out_t[0], frames_t[0] if frames_t.size else out_t[0], t[0] if t.size else out_t[0])
-    last = np.full((height, width), t0, dtype=np.int64)
-    if frames is None:
-        frames = np.zeros((1, height, width))
-    return _filter(x, y, t, c, frames, frames_t, out_t, state, last, alpha)
+    filt = EventFilter(width=width, height=height, contrast_on_ln=c_on, contrast_off_ln=c_off, cutoff_rad_s=alpha,
+                       frames_log=frames, frames_t_us=frames_t if frames is not None else None, initial=initial,
+                       t0_us=t0)
+    out = np.empty((out_t.size, height, width))
+    ends = np.searchsorted(t, out_t, side="right")  # events with t <= out_t[k]
+    a = 0
+    for k, tout in enumerate(out_t):
+        b = int(ends[k])
+        filt._feed(x[a:b], y[a:b], t[a:b], c[a:b], tout)
+        filt.estimate(tout, out[k])
+        a = b
+    return out
 
 
 def direct_integration(events: np.ndarray, frame_t_us: ArrayLike, *, width: int, height: int,

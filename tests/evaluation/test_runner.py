@@ -110,3 +110,32 @@ def test_brightness_reconstruction_uses_the_sensors_contrast_step(emulation):
     da = a.frames - a.frames.mean(axis=(1, 2), keepdims=True)
     db = b.frames - b.frames.mean(axis=(1, 2), keepdims=True)
     np.testing.assert_allclose(db, 2 * da, atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["dct", "sor_rc", "direct", "high_pass", "complementary"])
+def test_methods_read_events_in_bounded_windows_with_the_same_frames(emulation, monkeypatch, method):
+    """Events are read window by window (each read at most WINDOW_EVENTS events, or one
+    millisecond's), and the windows do not change a single bit of the frames."""
+    from gevsim.evaluation.methods import check_method
+    from gevsim.io import EventReader
+
+    whole, _, _ = reconstruct_file(emulation, method)
+    with EventReader(emulation) as r:
+        stream = check_method(method).stream
+        per_ms = int(np.diff(r.ms_to_idx(stream)).max())
+        total = r.count(stream)
+        assert total > 2 * max(per_ms, 8)  # the bound is well below the whole stream
+    sizes = []
+    read = EventReader.read
+
+    def spy(self, *args, **kwargs):
+        out = read(self, *args, **kwargs)
+        sizes.append(len(out))
+        return out
+
+    monkeypatch.setattr(EventReader, "read", spy)
+    monkeypatch.setattr("gevsim.io.hdf5.WINDOW_EVENTS", 8)
+    windowed, _, _ = reconstruct_file(emulation, method)
+    assert max(sizes) <= max(per_ms, 8) < total and len(sizes) > 4
+    np.testing.assert_array_equal(windowed.frames, whole.frames)
+    assert windowed.metrics == whole.metrics

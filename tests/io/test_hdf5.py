@@ -82,6 +82,38 @@ def test_window_read_equals_mask(window_file, start, end):
         np.testing.assert_array_equal(r.read("events", start, end), ev[mask])
 
 
+@settings(max_examples=100, deadline=None)
+@given(start=st.integers(0, 33_000), length=st.integers(0, 33_000), max_events=st.integers(1, 400))
+def test_windows_cover_the_range_and_hold_at_most_max_events(window_file, start, length, max_events):
+    """Consecutive windows, together exactly [start, end); each within max_events, or one
+    millisecond (inner boundaries are whole milliseconds), so memory is bounded."""
+    path, ev = window_file
+    end = start + length
+    with EventReader(path) as r:
+        windows = r.windows("events", start, end, max_events=max_events)
+        if length == 0:
+            assert windows == []
+            return
+        assert windows[0][0] == start and windows[-1][1] == end
+        assert all(a < b and b == c for (a, b), (c, _) in zip(windows, windows[1:] + [(end, None)]))
+        for a, b in windows:
+            n = int(np.count_nonzero((ev["t"] >= a) & (ev["t"] < b)))
+            assert n <= max_events or (b - 1) // 1000 == a // 1000, (a, b, n)
+            assert a == start or a % 1000 == 0
+        lo, hi = r.index_bounds("events", [start, end])
+        exact = np.searchsorted(ev["t"], [start, end], side="left")
+        assert np.all(lo <= exact) and np.all(exact <= hi)
+
+
+def test_windows_reject_bad_bounds(window_file):
+    with EventReader(window_file[0]) as r:
+        with pytest.raises(ValueError, match="max_events"):
+            r.windows("events", 0, 10, max_events=0)
+        with pytest.raises(ValueError, match=">= 0 us"):
+            r.windows("events", -5, 10)
+        assert r.count("events") == len(window_file[1]) and r.first_t_us("events") == 0
+
+
 @pytest.mark.parametrize("start,end,expected", [
     (1000, 1001, 3), (999, 1000, 1), (1000, 1000, 0), (4000, 4001, 3), (9500, 13_999, 0), (5000, 4000, 0),
     (40_000, 50_000, 0), (-500, 0, 0), (0, 1, 1)])

@@ -12,6 +12,7 @@ from gevsim.events.types import BRIGHTNESS_DTYPE
 from gevsim.reconstruct.brightness import (
     COMPLEMENTARY_CUTOFF_RAD_S,
     HIGH_PASS_CUTOFF_RAD_S,
+    EventFilter,
     complementary_filter,
     direct_integration,
     high_pass_filter,
@@ -201,3 +202,36 @@ def test_frame_stack_must_match_the_sensor_and_be_finite():
         high_pass_filter(events([]), [1], width=W, height=H, cutoff_rad_s=-1.0)
     with pytest.raises(ValueError, match="contrast_on_ln must be finite and > 0, got 0.0"):
         direct_integration(events([]), [1], width=W, height=H, contrast_on_ln=0.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(cuts=st.lists(st.integers(0, 3000), max_size=6, unique=True), seed=st.integers(0, 2**16))
+def test_event_filter_fed_in_windows_equals_the_one_shot_filter(cuts, seed):
+    """Cutting the events (and APS frames) into windows at any times changes no bit of the estimates."""
+    rng = np.random.default_rng(seed)
+    n = 400
+    ev = np.zeros(n, BRIGHTNESS_DTYPE)
+    ev["t"] = np.sort(rng.integers(0, 3000, n))
+    ev["x"], ev["y"], ev["p"] = rng.integers(0, W, n), rng.integers(0, H, n), rng.random(n) < 0.5
+    aps = rng.normal(0.0, 1.0, (3, H, W))
+    aps_t = np.array([0, 900, 2100])
+    out_t = np.array([500, 1500, 2999])
+    one = complementary_filter(ev, aps, aps_t, out_t, width=W, height=H, cutoff_rad_s=300.0)
+    filt = EventFilter(width=W, height=H, cutoff_rad_s=300.0, frames_log=aps, frames_t_us=aps_t, initial=aps[0],
+                       t0_us=0)
+    got, done = [], -1
+    for until in sorted(set(cuts) | set(out_t.tolist())):
+        filt.feed(ev[(ev["t"] > done) & (ev["t"] <= until)], until_us=until)
+        done = until
+        if until in out_t:
+            got.append(filt.estimate(until))
+    np.testing.assert_array_equal(np.asarray(got), one)
+
+
+def test_event_filter_refuses_events_outside_the_window():
+    filt = EventFilter(width=W, height=H, t0_us=0)
+    filt.feed(events([(0, 0, 10, True)]), until_us=20)
+    with pytest.raises(ValueError, match=r"fall outside the window \(20, 40\] us"):
+        filt.feed(events([(0, 0, 20, True)]), until_us=40)
+    with pytest.raises(ValueError, match="goes back"):
+        filt.feed(events([]), until_us=10)
