@@ -45,7 +45,6 @@ VARIANTS: dict[str, dict[str, Any]] = {"run": {}, "no_flicker": {"flicker": Fals
 FOLDED = ("run", "no_flicker")
 #: Alternation frequency of the render-noise floor when the swept lamp is steady.
 DEFAULT_FLOOR_HZ = 100.0
-WINDOW_US = 100_000  # events are read 0.1 s at a time
 
 
 def repeat_seed(study: Study, repeat: int) -> int:
@@ -85,8 +84,8 @@ def _fold(path: Path, stream: str, periods: dict[str, float], shape: tuple[int, 
     per_pixel = np.zeros(h * w, np.int64)
     phases = {g: np.zeros(PHASE_BINS, np.int64) for g in periods}
     with EventReader(path) as r:
-        for start in range(0, int(r.t_end_us) + 1, WINDOW_US):
-            ev = r.read(stream, start, start + WINDOW_US)
+        for start, end in r.windows(stream, 0, int(r.t_end_us) + 1):  # bounded memory at any event rate
+            ev = r.read(stream, start, end)
             per_pixel += np.bincount(ev["y"].astype(np.int64) * w + ev["x"], minlength=h * w)
             t_s = ev["t"] * 1e-6
             for g, period in periods.items():
