@@ -27,6 +27,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from numpy.typing import ArrayLike
 
 from gevsim import __version__
 from gevsim.errors import ConfigError, suggest
@@ -343,7 +344,7 @@ class EventReader:
         t = self._stream(stream)["t"]
         return int(t[0]) if t.shape[0] else None
 
-    def index_bounds(self, stream: str, t_us) -> tuple[np.ndarray, np.ndarray]:
+    def index_bounds(self, stream: str, t_us: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Bounds ``(lo, hi)`` on the index of the first event of ``stream`` with time >= each of
         ``t_us`` (>= 0), from ``ms_to_idx`` alone (exact at whole milliseconds): ``hi[j] - lo[i]``
         bounds the number of events in ``[t_us[i], t_us[j])``."""

@@ -138,8 +138,9 @@ class EventFilter:
     t0_us : time (us) of ``initial``: no later than the first event, frame or estimate.
     """
 
-    def __init__(self, *, width, height, contrast_on_ln=CONTRAST_LN, contrast_off_ln=CONTRAST_LN, cutoff_rad_s=0.0,
-                 frames_log=None, frames_t_us=None, initial=None, t0_us: int):
+    def __init__(self, *, width: int, height: int, contrast_on_ln: float = CONTRAST_LN,
+                 contrast_off_ln: float = CONTRAST_LN, cutoff_rad_s: float = 0.0, frames_log: ArrayLike | None = None,
+                 frames_t_us: ArrayLike | None = None, initial: ArrayLike | None = None, t0_us: int):
         self.width, self.height = size(width, height)
         self.c_on, self.c_off = _contrasts(contrast_on_ln, contrast_off_ln)
         self.alpha = real(cutoff_rad_s, "cutoff_rad_s", low=0.0)
@@ -161,10 +162,11 @@ class EventFilter:
         self.applied_frames = 0
         self.until_us: int | None = None
 
-    def feed(self, events, *, until_us: int) -> None:
+    def feed(self, events: np.ndarray, *, until_us: int) -> None:
         """Apply ``events`` (BRIGHTNESS_DTYPE, sorted, all with ``t <= until_us`` and after the
         previous window's ``until_us``) and the reference frames up to ``until_us``."""
-        self._feed(*_unpack(events, self.width, self.height, self.c_on, self.c_off), until_us)
+        x, y, t, c = _unpack(events, self.width, self.height, self.c_on, self.c_off)
+        self._feed(x, y, t, c, until_us)
 
     def _feed(self, x, y, t, c, until_us) -> None:
         until_us = int(until_us)
