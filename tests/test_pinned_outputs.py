@@ -6,7 +6,9 @@ on a fixed synthetic photocurrent (no rendering) are hashed with SHA-256. The
 hashes were computed once on the code before the refactors of issue 10
 (commit 270cc79; the one-pose driver run was added later, its hash computed on
 a checkout of that commit) and are hard-coded: a change of any of them means the numbers changed, not just
-the code's shape. Rendered runs are not pinned (the renderer changes them).
+the code's shape. Rendered runs are not pinned (the renderer changes them). The two driver pins were
+recomputed when the temporal noise moved to a 64-bit counter-based generator (issue 12): the davis346
+sensor's noise draws changed, nothing else.
 
 If a deliberate change of the physics moves a pin, recompute it with
 ``python tests/test_pinned_outputs.py`` and say so in the commit message.
@@ -44,8 +46,8 @@ PINS = {
     "reconstruct.sor_rc": "1ade5de9059d1a68bd34b6d8ca3a5cf9deb9f901e6e12016f2b629d67f5e7438",
     "reconstruct.direct": "9b9954e4f8dd922df266cd31a1316ae6e9d7f6f0afb7214b8ecdfa36ebff9e51",
     "reconstruct.high_pass": "4b8cc66aac24c4f19ab82f6346fe9fe554fd8b4e44fce055fc854e2c85a21196",
-    "driver_one_pose.h5": "97660d2e06325e77e9d304dce6ce2817cde2e212983e98f3fc26942793fade22",
-    "driver.h5": "930f849a83470af6042bc8ed6ab6d75b1e9f6f31af38268a841a4aeae4b64f5d",
+    "driver_one_pose.h5": "d77c3950f09747dfce13fea092f1458a96d7e645f2b5130dbac03b09c35a3a89",
+    "driver.h5": "81fda05e06db1a890f4052903c82ccea50c42de624be3fad5d7b48e06400c737",
 }
 
 

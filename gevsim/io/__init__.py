@@ -1,5 +1,5 @@
-"""File formats: HDF5 event files, EVREAL folders, text events, OpenEXR images, frame sequences,
-atomic writes."""
+"""File formats: HDF5 event files, EVREAL folders, text events, tonic event arrays, OpenEXR images,
+frame sequences, atomic writes."""
 
 from gevsim.io.atomic import (
     MANIFEST,
@@ -16,6 +16,8 @@ from gevsim.io.exr import read_exr, read_exr_layers, write_exr, write_exr_layers
 from gevsim.io.frames import load_evreal_frames, load_frame_folder, load_video
 from gevsim.io.hdf5 import EventReader, EventWriter
 from gevsim.io.text import export_text, import_text
+from gevsim.io.tonic_events import sensor_size as tonic_sensor_size
+from gevsim.io.tonic_events import to_tonic
 
 __all__ = [
     "EventReader",
@@ -37,6 +39,8 @@ __all__ = [
     "read_exr_layers",
     "remove_stale",
     "sweep_stale",
+    "to_tonic",
+    "tonic_sensor_size",
     "write_exr",
     "write_exr_layers",
 ]

@@ -51,7 +51,7 @@ class Photoreceptor:
         gain, dark = fixed_pattern(self.shape, noise, rng=rng)
         self.gain = gain.ravel().astype(np.float64)
         self.dark_a = dark.ravel().astype(np.float64)
-        self.key = int(rng.integers(0, 2**32))
+        self.key = int(rng.integers(0, 2**64, dtype=np.uint64))  # of the 64-bit counter-based noise generator
         self.fn_hz, self.fn_var = output_noise_poles(noise, params.volts_per_ln)
         n = self.gain.size
         self.fn = (np.sqrt(self.fn_var)[:, None] * rng.standard_normal((len(self.fn_hz), n))).astype(np.float64)
@@ -105,7 +105,7 @@ class Photoreceptor:
         out = np.empty(flat.shape, np.float32)
         fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
         _kernels.photoreceptor(
-            flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint32(self.key), self.step,
+            flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint64(self.key), self.step,
             fc_ref, p.cutoff_ref_photocurrent_a, p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf,
             p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0,
             out,

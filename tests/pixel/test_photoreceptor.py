@@ -1,9 +1,12 @@
-"""Photoreceptor: step response, log response, shot noise, chunking, determinism, bad input."""
+"""Photoreceptor: step response, log response, shot noise, chunking, determinism, bad input; the
+64-bit counter-based noise generator draws no repeated fields and ignores threads and chunking."""
 
 import math
 
+import numba
 import numpy as np
 import pytest
+from numba import njit
 from scipy import stats
 
 from gevsim.pixel import NoiseParams, Photoreceptor, PhotoreceptorParams, _kernels, shot_noise_variance_ln
@@ -182,3 +185,70 @@ def test_infinite_bandwidth_follows_the_log_instantly():
     np.testing.assert_allclose(out[:, 0, 0], np.log(steps + 1e-18), rtol=1e-6)
     with pytest.raises(ValueError, match="finite photoreceptor bandwidth"):
         Photoreceptor(SHAPE, params=ideal, noise=NoiseParams(), rng=np.random.default_rng(0))
+
+
+@njit
+def _lowbias32(x):
+    x = np.uint32(x)
+    x ^= x >> np.uint32(16)
+    x = np.uint32(x * np.uint32(0x7FEB352D))
+    x ^= x >> np.uint32(15)
+    x = np.uint32(x * np.uint32(0x846CA68B))
+    x ^= x >> np.uint32(16)
+    return x
+
+
+@njit
+def _field_fingerprints(key, n_steps, n_pixels, former):
+    """Per step, a fingerprint of the multiset of the 32-bit values behind one stream's deviates of
+    pixels 0 .. n_pixels - 1: the sum of their 64-bit hashes, the same for a field and any shuffle
+    of it. ``former``: the 32-bit generator used before (issue 12), else the current one."""
+    out = np.empty(n_steps, np.uint64)
+    for step in range(n_steps):
+        if former:  # mix32(mix32(key ^ mix32(step_lo ^ mix32(step_hi ^ 0x5BD1E995))) ^ mix32(stream * 0x9E3779B9))
+            sk = _lowbias32(np.uint32(key) ^ _lowbias32(np.uint32(step) ^ _lowbias32(np.uint32(0x5BD1E995))))
+            sk = _lowbias32(sk ^ _lowbias32(np.uint32(1) * np.uint32(0x9E3779B9)))
+            block_key = _lowbias32(sk ^ np.uint32(0))  # block starting at pixel 0
+        else:
+            sk = _kernels.stream_key(key, step, 1)
+        acc = np.uint64(0)
+        for p in range(n_pixels):
+            bits = _lowbias32(block_key ^ np.uint32(p)) if former else _kernels.pixel_bits(sk, p)
+            acc += _kernels.mix64(np.uint64(bits))
+        out[step] = acc
+    return out
+
+
+def _repeated_pairs(fingerprints):
+    _, counts = np.unique(fingerprints, return_counts=True)
+    return int(np.sum(counts * (counts - 1) // 2))
+
+
+def test_no_noise_field_repeats_shuffled_over_many_steps():
+    """2^17 steps (1.3 s of 10 us steps) of a 1024-pixel block. The former 32-bit generator hashed
+    key ^ pixel with a 32-bit key per step, so steps whose keys agree but in the low 10 bits drew
+    the same field, shuffled: ~2^34 / 2^22 = 2048 such pairs expected. The 64-bit generator: none."""
+    n_steps, n_pixels = 2**17, 1024
+    former = _repeated_pairs(_field_fingerprints(1234, n_steps, n_pixels, True))
+    assert 1700 < former < 2400
+    assert _repeated_pairs(_field_fingerprints(1234, n_steps, n_pixels, False)) == 0
+
+
+def test_noise_is_the_same_for_any_threads_and_chunking_across_blocks():
+    """2400 pixels: three parallel blocks (the last partial), every noise source on."""
+    noise = NoiseParams(shot_noise=True, read_noise_v=1e-3, dark_current_a=3e-15, dark_current_spread=0.3,
+                        prnu=0.01, flicker_noise_v=1e-3, flicker_noise_low_hz=1.0, flicker_noise_high_hz=1e3)
+    cur = _scene(np.random.default_rng(4), t_steps=30, shape=(40, 60))
+    t = 1e-5 * np.arange(1, 31)
+    runs = []
+    threads = numba.get_num_threads()
+    try:
+        for n in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+            numba.set_num_threads(n)
+            for cuts in ([0, 30], [0, 1, 13, 30]):
+                pr = Photoreceptor(cur.shape[1:], params=REC, noise=noise, rng=np.random.default_rng(3))
+                runs.append(np.concatenate([pr.process(cur[a:b], t[a:b]) for a, b in zip(cuts, cuts[1:])]))
+    finally:
+        numba.set_num_threads(threads)
+    assert all(np.array_equal(runs[0], r) for r in runs[1:])
+    assert np.std(runs[0][-1] - np.log(cur[-1])) > 0  # noise is on
