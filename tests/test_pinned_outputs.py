@@ -8,7 +8,10 @@ hashes were computed once on the code before the refactors of issue 10
 a checkout of that commit) and are hard-coded: a change of any of them means the numbers changed, not just
 the code's shape. Rendered runs are not pinned (the renderer changes them). The two driver pins were
 recomputed when the temporal noise moved to a 64-bit counter-based generator (issue 12): the davis346
-sensor's noise draws changed, nothing else.
+sensor's noise draws changed, nothing else. The three HDF5 pins were recomputed again for the DSEC
+layout (issue 12): format "gevsim-events-2", the polarity stored as uint8 instead of an HDF5 bool
+enum, a root t_offset (and ms_to_idx, a link to /events/ms_to_idx), units and meaning attributes on
+every dataset; the events and reconstructions read from them are unchanged.
 
 If a deliberate change of the physics moves a pin, recompute it with
 ``python tests/test_pinned_outputs.py`` and say so in the commit message.
@@ -39,15 +42,15 @@ PINS = {
     "frames.events": "4b855b10cd4bd3765460ff8bfe31582507926240a3acec7006cbf59b86f4017a",
     "frames.gradient_events": "b62ad3f9f2ce3af26f88d6365c9ee94c4831c7c5b64a423e1f7a15675f326067",
     "frames.gradient_rc_events": "9ee493331eb7736018f23593f8142c5b330d9f77f368c93eaa14f963d62ba5fd",
-    "frames.h5": "c8add6b11995dcb35b986afc8cdcc69319cc1fedbdd49772acb24923dbabaf84",
+    "frames.h5": "a348d78f2427e56af814339ff5967e4c013a3576f675c249ce0f3f637cd7679b",
     "reconstruct.dct": "ee9f0e4d5c2d8a6da349c7fd05dbea50b35e9707efbd66ad9d5926032ee04852",
     "reconstruct.sor": "1c4ceb46ba2f7c23359375e9b3c131e1d24ed917048c42f9707dd549ae6399b5",
     "reconstruct.dct_rc": "b8226e9243536e27f2ca25725e4ed3693885221864b76de331efd24bc90d8e3b",
     "reconstruct.sor_rc": "1ade5de9059d1a68bd34b6d8ca3a5cf9deb9f901e6e12016f2b629d67f5e7438",
     "reconstruct.direct": "9b9954e4f8dd922df266cd31a1316ae6e9d7f6f0afb7214b8ecdfa36ebff9e51",
     "reconstruct.high_pass": "4b8cc66aac24c4f19ab82f6346fe9fe554fd8b4e44fce055fc854e2c85a21196",
-    "driver_one_pose.h5": "d77c3950f09747dfce13fea092f1458a96d7e645f2b5130dbac03b09c35a3a89",
-    "driver.h5": "81fda05e06db1a890f4052903c82ccea50c42de624be3fad5d7b48e06400c737",
+    "driver_one_pose.h5": "8720ace456440600af79dbe773d381fa35ae7856376bfbd22462db3f5b416365",
+    "driver.h5": "4d8aa6bc61e271b024b2e8bcf79d05f4f58344ccd568f7db12a6ec307011fa81",
 }
 
 

@@ -228,15 +228,17 @@ def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):
         wm = weights_at(mean, np.array([t]))
         t_us = int(round(t * 1e6))
         wr.append_frame(layout.LOG_PHOTOCURRENT, np.log(photocurrent_at(setup, np.array([t]), wt)[0] + dark)
-                        .astype(np.float32), t_us)
+                        .astype(np.float32), t_us, **layout.FRAME_ATTRS[layout.LOG_PHOTOCURRENT])
         wr.append_frame(layout.LOG_PHOTOCURRENT_NO_FLICKER,
-                        np.log(photocurrent_at(setup, np.array([t]), wm)[0] + dark).astype(np.float32), t_us)
+                        np.log(photocurrent_at(setup, np.array([t]), wm)[0] + dark).astype(np.float32), t_us,
+                        **layout.FRAME_ATTRS[layout.LOG_PHOTOCURRENT_NO_FLICKER])
         if aps is not None and t >= config.aps_exposure_s:
             start = t - config.aps_exposure_s
             wa = weights_at(setup.waveforms, np.array([start]), average_over_s=config.aps_exposure_s)
             current = photocurrent_at(setup, np.array([start + 0.5 * config.aps_exposure_s]), wa)[0]
             electrons = current * config.aps_exposure_s / elementary_charge
-            wr.append_frame(layout.APS, aps.read(electrons, config.aps_exposure_s, rng=aps_rng), t_us)
+            wr.append_frame(layout.APS, aps.read(electrons, config.aps_exposure_s, rng=aps_rng), t_us,
+                            **layout.FRAME_ATTRS[layout.APS])
     if len(frame_t):
         wr.set_attrs("/frames", units="ln(A) for log_photocurrent*, DN for aps")
     if aps is not None and len(frame_t) > 1:

@@ -116,14 +116,15 @@ def run_frames(frames: np.ndarray, t_s: np.ndarray, out: str | os.PathLike, *, s
     with EventWriter(out, width=w, height=h, config_toml=config, seed=seed,
                      extra_attrs={"mode": "frames", "source": str(source)}) as wr:
         for k, t in enumerate(t_s):
-            wr.append_frame(layout.INTENSITY, frames[k].astype(np.float32), int(round(t * 1e6)))
+            wr.append_frame(layout.INTENSITY, frames[k].astype(np.float32), int(round(t * 1e6)),
+                            **layout.FRAME_ATTRS[layout.INTENSITY])
         for name, events in streams.items():
             wr.append(name, events)
         for name, entry in EMULATORS.items():
             if entry.decodes and entry.stream in streams:  # what decoding and reconstruction start from
                 assert entry.build_frames is not None and entry.thresholds is not None  # decoders run on frames
                 em = entry.build_frames((h, w), thresholds=PAPER_THRESHOLDS, dvs_params=None, rng=None)
-                layout.write_thresholds(wr, name, entry.thresholds(em, None))
+                layout.write_thresholds(wr, name, entry.thresholds(em, None), units="1 (gray value in [0, 1])")
                 layout.write_initial_state(wr, name, em.ternary_of(frames[0]))
         wr.close(t_end_us=int(round(t_s[-1] * 1e6)))
     return {"width": w, "height": h, "frames": len(frames), "duration_s": float(t_s[-1] - t_s[0]),

@@ -23,6 +23,17 @@ LOG_PHOTOCURRENT_NO_FLICKER = "log_photocurrent_no_flicker"
 APS = "aps"
 INTENSITY = "intensity"
 
+#: units and meaning of each frame stream's images (``EventWriter.append_frame(..., **FRAME_ATTRS[name])``).
+FRAME_ATTRS: dict[str, dict[str, str]] = {
+    LOG_PHOTOCURRENT: {"units": "ln(A)", "meaning": "noise-free log photocurrent (with dark current) as lit at "
+                                                     "each instant: the ground truth"},
+    LOG_PHOTOCURRENT_NO_FLICKER: {"units": "ln(A)", "meaning": "noise-free log photocurrent with every lamp at "
+                                                                "its mean: the ground truth without flicker"},
+    APS: {"units": "DN", "meaning": "APS frame (EMVA 1288 model) exposed until the frame time; "
+                                    "see the group's offset_dn and system_gain_dn_per_e"},
+    INTENSITY: {"units": "1", "meaning": "input frame, linear gray value in [0, 1] (frame mode)"},
+}
+
 
 def thresholds_key(emulator: str) -> str:
     """Where an emulator's thresholds are stored."""
@@ -34,11 +45,19 @@ def initial_state_key(emulator: str) -> str:
     return f"/initial_state/{emulator}"
 
 
-def write_thresholds(writer: EventWriter, emulator: str, thresholds: np.ndarray) -> None:
-    """Store an emulator's thresholds (gradient: theta as float32; dvs: nominal ON/OFF)."""
-    writer.write_array(thresholds_key(emulator), thresholds)
+def write_thresholds(writer: EventWriter, emulator: str, thresholds: np.ndarray, *, units: str = "ln") -> None:
+    """Store an emulator's thresholds (gradient: theta (2, H, W) as float32; dvs: nominal ON/OFF), in
+    ``units`` (ln units in scene mode, gray values in frame mode)."""
+    thresholds = np.asarray(thresholds)
+    if thresholds.ndim == 3:
+        meaning = "threshold theta of each gradient comparator (axis 0 = X, 1 = Y; row; column)"
+    else:
+        meaning = "nominal (ON, OFF) contrast thresholds of the brightness events"
+    writer.write_array(thresholds_key(emulator), thresholds, units=units, meaning=meaning)
 
 
 def write_initial_state(writer: EventWriter, emulator: str, state: np.ndarray) -> None:
     """Store the ternary state decoding starts from."""
-    writer.write_array(initial_state_key(emulator), state)
+    writer.write_array(initial_state_key(emulator), state, units="1",
+                       meaning="ternary gradient state (-1, 0, +1) of each comparator (axis, row, column) "
+                               "before the first event: decoding starts from it")

@@ -20,7 +20,9 @@ Output: ``DIR/shards/seq_{i:05d}.h5`` (the emulation), ``DIR/evreal/seq_{i:05d}/
 the done-marker, ``DIR/shards/seq_{i:05d}.json``. A sequence counts as done only
 if its marker parses, its shard (and EVREAL folder) exist and the marker's
 config, scene file contents and gevsim version equal the ones it would run now
-(:func:`finished`); otherwise it is redone from scratch.
+(:func:`finished`); otherwise it is redone from scratch. A sequence with fewer than
+two DVS events gets no EVREAL folder (EVREAL cannot load one): its marker says why
+under ``evreal_skipped``.
 ``DIR/dataset.json`` lists the done ones.
 """
 
@@ -29,6 +31,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import functools
 import json
+import logging
 import math
 import os
 import shutil
@@ -48,9 +51,12 @@ from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.experiments.executors import run_all
 from gevsim.io import EventReader, atomic_write_text, exclusive, export_evreal, sweep_stale
+from gevsim.io.evreal import MIN_EVENTS
 from gevsim.reconstruct.tonemap import ToneMap
 from gevsim.render.quality import check_render_overrides
 from gevsim.timebase import TimeGrid
+
+log = logging.getLogger(__name__)
 
 KEYS = ("sequences", "seed", "scenes", "sensors", "emulators", "duration_s", "step_s", "chunk_steps",
         "frame_rate_hz", "evreal", "render", "randomize")
@@ -231,7 +237,8 @@ def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int) -> d
                 and record["gevsim_version"] == __version__ and record["scene_sha256"] == scene_digest(params["scene"]))
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    return record if same and shard.is_file() and (evreal.is_dir() or not config.evreal) else None
+    evreal_done = evreal.is_dir() or not config.evreal or record.get("evreal_skipped")
+    return record if same and shard.is_file() and evreal_done else None
 
 
 def _clear(out_dir, index: int) -> None:
@@ -245,13 +252,19 @@ def _clear(out_dir, index: int) -> None:
             shutil.rmtree(tmp, ignore_errors=True) if tmp.is_dir() else tmp.unlink(missing_ok=True)
 
 
-def _export_evreal(shard: Path, folder: Path, params: dict) -> None:
+def _export_evreal(shard: Path, folder: Path, params: dict) -> str | None:
+    """Write the sequence's EVREAL folder; returns why it was not written (too few DVS events), else None."""
     with EventReader(shard) as r:
+        if r.count("events") < MIN_EVENTS:
+            reason = f"{r.count('events')} DVS events: EVREAL cannot load a sequence with fewer than {MIN_EVENTS}"
+            log.warning("sequence %d: %s; %s not written", params["index"], reason, folder)
+            return reason
         events, (frames, t_us), w, h = r.read("events"), r.frames("log_photocurrent"), r.width, r.height
     tone = ToneMap.from_ground_truth(frames)
     images = np.rint(tone(frames) * 255.0).astype(np.uint8)
     export_evreal(folder, events, images, t_us, width=w, height=h,
                   extra_metadata={"tone_map_ln": [tone.low, tone.high], "parameters": params})
+    return None
 
 
 def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: str | None = None) -> dict:
@@ -269,14 +282,15 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     emulation = sequence_config(config, params)
     scene_sha256 = scene_digest(params["scene"])  # before the run: an edit during it makes the next run redo it
     summary = run(emulation, shard, cache_dir=cache_dir)
-    if config.evreal:
-        _export_evreal(shard, evreal, params)
+    skipped = _export_evreal(shard, evreal, params) if config.evreal else None
     seconds = time.perf_counter() - start
     record = {"index": index, "parameters": params, "config_toml": emulation.to_toml(), "counts": summary.counts,
               "frames": summary.frames, "width": summary.width, "height": summary.height,
               "shard": str(shard.relative_to(Path(out_dir))), "seconds": seconds, "gevsim_version": __version__,
               "scene_sha256": scene_sha256,
-              "evreal": str(evreal.relative_to(Path(out_dir))) if config.evreal else None}
+              "evreal": str(evreal.relative_to(Path(out_dir))) if config.evreal and not skipped else None}
+    if skipped:
+        record["evreal_skipped"] = skipped
     atomic_write_text(marker, json.dumps(record, indent=1))  # last: the done-marker
     return {"index": index, "status": "done", "counts": summary.counts, "seconds": seconds}
 

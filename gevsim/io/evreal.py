@@ -24,7 +24,11 @@ and HQF folders:
     ``width``, ``height``, ``gevsim_version`` and ``extra_metadata``.
 
 The images files are optional in EVREAL (it then has no ground truth); all
-three must be present or all absent.
+three must be present or all absent. A sequence needs at least two events:
+``MemMapDataset.load_data`` squeezes the event files and takes ``events_ts[0]`` and
+``events_ts[-1]`` as the sequence's time span, which raises IndexError for no events
+and for one (squeezed to a scalar), so :func:`export_evreal` refuses to write such a
+folder (:class:`TooFewEventsError`).
 """
 
 from __future__ import annotations
@@ -41,6 +45,15 @@ from gevsim.events.types import BRIGHTNESS_DTYPE, check_events
 from gevsim.io.atomic import atomic_dir
 
 EVENT_FILES = ("events_ts.npy", "events_xy.npy", "events_p.npy")
+
+
+#: Fewest events of a sequence EVREAL's loader reads (see the module docstring).
+MIN_EVENTS = 2
+
+
+class TooFewEventsError(ValueError):
+    """An EVREAL sequence with fewer than MIN_EVENTS events: EVREAL cannot load it."""
+
 IMAGE_FILES = ("images.npy", "images_ts.npy", "image_event_indices.npy")
 METADATA = "metadata.json"
 
@@ -78,10 +91,21 @@ def export_evreal(folder: str | os.PathLike, events: np.ndarray, images: np.ndar
         Sensor size in pixels.
     extra_metadata : dict, optional
         More keys for ``metadata.json``.
+
+    Raises
+    ------
+    TooFewEventsError
+        If ``events`` holds fewer than two events: EVREAL's loader cannot read such a folder, so
+        none is written.
     """
     check_events(events)
     if events.dtype != BRIGHTNESS_DTYPE:
         raise TypeError(f"EVREAL holds brightness events only, got dtype {events.dtype}")
+    if len(events) < MIN_EVENTS:
+        raise TooFewEventsError(
+            f"{folder}: not written: {len(events)} event{'s' * (len(events) != 1)}, and EVREAL cannot load a "
+            f"sequence with fewer than {MIN_EVENTS} (its MemMapDataset squeezes events_ts.npy and reads "
+            "events_ts[0] and events_ts[-1])")
     if len(events) and (events["x"].min() < 0 or events["x"].max() >= width
                         or events["y"].min() < 0 or events["y"].max() >= height):
         raise ValueError(f"event coordinates fall outside the {width}x{height} sensor")

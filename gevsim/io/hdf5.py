@@ -1,18 +1,25 @@
-"""DSEC-like HDF5 event files (DESIGN.md, Data contracts).
+"""DSEC-compatible HDF5 event files (DESIGN.md, Data contracts).
 
-Layout (format ``"gevsim-events-1"``)::
+Layout (format ``"gevsim-events-2"``)::
 
     /                      attrs: width, height, config_toml, seed, gevsim_version,
                                   format, complete, t_end_us, extra attributes
-    /events/{x,y,t,p}      brightness events, one 1-D dataset per field
+    /events/{x,y,t,p}      brightness events, one 1-D dataset per field; p uint8, 1 = ON, 0 = OFF
     /events/ms_to_idx      ms_to_idx[k] = index of the first event with t >= k*1000 us
+    /ms_to_idx             the same dataset (a hard link), where DSEC's tools look for it
+    /t_offset              int64 us added to events/t for absolute time (0)
     /gradient_events/{x,y,t,p,axis}, /gradient_events/ms_to_idx
     /<stream>/...          any other named stream, same layout
     /frames/<name>/images  (N, H, W[, C]) and /frames/<name>/t (N,) int64 us
 
-``ms_to_idx`` follows DSEC (Gehrig et al., RA-L 2021) but lives in each event
-group; every stream's table has ``ceil(t_end_us / 1000) + 1`` entries. Timestamps
-must be non-negative. The file is written under a temporary name beside the
+The brightness stream is laid out as DSEC's ``events.h5`` (Gehrig et al., RA-L 2021;
+github.com/uzh-rpg/DSEC, ``scripts/utils/eventslicer.py`` reads ``events/{p,x,y,t}``,
+the root ``ms_to_idx`` and ``t_offset``), so DSEC's slicer and loaders read it as is.
+Every stream has its own ``ms_to_idx`` with ``ceil(t_end_us / 1000) + 1`` entries.
+Boolean fields (the brightness polarity) are stored as uint8 0/1, not as an HDF5 enum,
+and read back as bool. Every dataset carries ``units`` and ``meaning`` attributes.
+Timestamps must be non-negative. Files of format ``"gevsim-events-1"`` (bool enum
+polarity, no root ``ms_to_idx``) are still read. The file is written under a temporary name beside the
 target and renamed onto it only by a clean :meth:`EventWriter.close`, so a file
 at the target path always carries ``complete = True``.
 """
@@ -36,12 +43,44 @@ from gevsim.io.atomic import Staged
 
 log = logging.getLogger(__name__)
 
-FORMAT = "gevsim-events-1"
+FORMAT = "gevsim-events-2"
+#: Formats EventReader reads: 1 stored the polarity as an HDF5 bool enum and had no root ms_to_idx.
+READABLE_FORMATS = ("gevsim-events-1", FORMAT)
 CHUNK = 2**16
 #: Default bound on the events of one window of :meth:`EventReader.windows` (~13 MiB of brightness events).
 WINDOW_EVENTS = 2**20
 _STANDARD = {"events": BRIGHTNESS_DTYPE, "gradient_events": GRADIENT_DTYPE}
 _RESERVED_ATTRS = {"width", "height", "config_toml", "seed", "gevsim_version", "format", "complete", "t_end_us"}
+#: Marks a dataset stored as uint8 0/1 that holds a bool field.
+BOOL_ATTR = "numpy_dtype"
+
+#: units and meaning of the event fields: field -> (units, meaning); "p" by the field's dtype kind.
+FIELD_ATTRS = {
+    "x": ("px", "pixel column, 0 = left"),
+    "y": ("px", "pixel row, 0 = top"),
+    "t": ("us", "timestamp in microseconds from the start of the recording (plus t_offset where there is one)"),
+    ("p", "b"): ("1", "polarity: 1 = ON (log intensity rose by the ON threshold), 0 = OFF (fell by the OFF "
+                      "threshold); stored as uint8, read as bool"),
+    ("p", "i"): ("1", "gradient event: +1 or -1, from the previous and new ternary gradient state "
+                      "(Lehtonen et al., Table 1)"),
+    "axis": ("1", "comparator axis: 0 = X (G_X = I(x+1, y) - I(x, y)), 1 = Y (G_Y = I(x, y+1) - I(x, y))"),
+}
+MS_TO_IDX_ATTRS = ("index", "ms_to_idx[k] = index of the first event with t >= k * 1000 us (DSEC)")
+T_OFFSET_ATTRS = ("us", "added to events/t for absolute time (DSEC); 0: timestamps count from the start "
+                        "of the recording")
+FRAME_T_ATTRS = ("us", "time of each image")
+
+
+def _field_attrs(name: str, dtype: np.dtype, stream: str) -> tuple[str, str]:
+    return FIELD_ATTRS.get(name) or FIELD_ATTRS.get((name, dtype.kind)) or (
+        "1", f"field {name!r} of the {stream!r} events (no standard meaning)")
+
+
+def _describe(obj, units: str | None, meaning: str | None) -> None:
+    if units is not None:
+        obj.attrs["units"] = str(units)
+    if meaning is not None:
+        obj.attrs["meaning"] = str(meaning)
 
 
 class _Stream:
@@ -52,13 +91,19 @@ class _Stream:
         self.last_t: int | None = None
         group.attrs["kind"] = "events"
         group.attrs["fields"] = list(dtype.names or ())
-        self.fields = {
-            name: group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype[name],
-                                       chunks=(CHUNK,), compression=compression)
-            for name in dtype.names or ()
-        }
+        self.fields = {}
+        stream = group.name.lstrip("/")
+        for name in dtype.names or ():
+            boolean = dtype[name] == np.bool_
+            ds = group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=np.uint8 if boolean else dtype[name],
+                                      chunks=(CHUNK,), compression=compression)
+            if boolean:
+                ds.attrs[BOOL_ATTR] = "bool"
+            _describe(ds, *_field_attrs(name, dtype[name], stream))
+            self.fields[name] = ds
         self.ms = group.create_dataset("ms_to_idx", shape=(0,), maxshape=(None,), dtype=np.int64,
                                        chunks=(4096,), compression=compression)
+        _describe(self.ms, *MS_TO_IDX_ATTRS)
 
     def extend_ms(self, values: np.ndarray) -> None:
         self.ms.resize((self.n_ms + len(values),))
@@ -153,7 +198,7 @@ class EventWriter:
         n0, n1 = state.n, state.n + len(t)
         for name, ds in state.fields.items():
             ds.resize((n1,))
-            ds[n0:n1] = np.ascontiguousarray(events[name])
+            ds[n0:n1] = np.ascontiguousarray(events[name], dtype=ds.dtype)  # bool -> uint8 0/1
         state.n, state.last_t = n1, int(t[-1])
         k_last = int(t[-1]) // 1000  # entries k <= k_last are now final
         if k_last >= state.n_ms:
@@ -176,8 +221,10 @@ class EventWriter:
         self._t_end_us = int(t_end_us)
 
     # -- frames, arrays, attributes -------------------------------------------------------
-    def append_frame(self, name: str, image: np.ndarray, t_us: int) -> None:
-        """Append an (H, W) or (H, W, C) image taken at ``t_us`` to ``/frames/<name>``."""
+    def append_frame(self, name: str, image: np.ndarray, t_us: int, *, units: str | None = None,
+                     meaning: str | None = None) -> None:
+        """Append an (H, W) or (H, W, C) image taken at ``t_us`` to ``/frames/<name>``; ``units`` and
+        ``meaning`` of the images are stored with the first one."""
         self._check_open()
         image = np.asarray(image)
         if image.ndim not in (2, 3):
@@ -188,6 +235,8 @@ class EventWriter:
             g.create_dataset("images", shape=(0, *image.shape), maxshape=(None, *image.shape), dtype=image.dtype,
                              chunks=(1, *image.shape), compression=self.compression)
             g.create_dataset("t", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
+            _describe(g["images"], units, meaning)
+            _describe(g["t"], *FRAME_T_ATTRS)
         images, t = group[name]["images"], group[name]["t"]
         if image.shape != images.shape[1:] or image.dtype != images.dtype:
             raise ValueError(f"frame {name!r}: got {image.shape} {image.dtype}, "
@@ -199,14 +248,19 @@ class EventWriter:
         t.resize((n + 1,))
         images[n], t[n] = image, int(t_us)
 
-    def write_array(self, path_in_file: str, array: np.ndarray, attrs: dict | None = None) -> None:
-        """Store ``array`` as a dataset at ``path_in_file`` (e.g. ``"thresholds/on"``)."""
+    def write_array(self, path_in_file: str, array: np.ndarray, attrs: dict | None = None, *,
+                    units: str | None = None, meaning: str | None = None) -> None:
+        """Store ``array`` as a dataset at ``path_in_file`` (e.g. ``"thresholds/on"``) with its
+        ``units`` and ``meaning`` (attributes) and any other ``attrs``."""
         self._check_open()
         if path_in_file in self._file:
             raise ValueError(f"{path_in_file!r} already exists in {self.path}")
+        if path_in_file.strip("/") in ("ms_to_idx", "t_offset"):
+            raise ValueError(f"{path_in_file!r} at the root is reserved for the DSEC layout of the brightness stream")
         array = np.asarray(array)
         opts = {"compression": self.compression} if array.ndim and array.size else {}
         self._file.create_dataset(path_in_file, data=array, **opts)
+        _describe(self._file[path_in_file], units, meaning)
         self.set_attrs(path_in_file, **(attrs or {}))
 
     def set_attrs(self, group_path: str, **attrs: object) -> None:
@@ -249,6 +303,13 @@ class EventWriter:
         for state in self._streams.values():
             if state.n_ms < n_ms:
                 state.extend_ms(np.full(n_ms - state.n_ms, state.n, dtype=np.int64))
+        if "events" in self._streams:  # DSEC's root layout for the brightness stream
+            for name in ("ms_to_idx", "t_offset"):
+                if name in self._file:
+                    raise ValueError(f"{self.path}: {name!r} at the root is reserved for the DSEC layout")
+            self._file["ms_to_idx"] = self._streams["events"].ms  # a hard link: the same dataset
+            offset = self._file.create_dataset("t_offset", data=np.int64(0))
+            _describe(offset, *T_OFFSET_ATTRS)
         self._file.attrs["t_end_us"] = np.int64(t_end_us)
         self._file.attrs["complete"] = True
 
@@ -282,10 +343,10 @@ class EventReader:
         except OSError as exc:
             raise ConfigError(f"not an HDF5 file ({exc})", source=src) from None
         attrs = self._file.attrs
-        if attrs.get("format") != FORMAT:
+        if attrs.get("format") not in READABLE_FORMATS:
             self._file.close()
             raise ConfigError(f"not a gevsim event file (format attribute {attrs.get('format')!r}, "
-                              f"expected {FORMAT!r})", source=src)
+                              f"expected one of {', '.join(map(repr, READABLE_FORMATS))})", source=src)
         if not attrs.get("complete", False):
             self._file.close()
             raise ConfigError("incomplete gevsim event file: the writer did not finish", source=src)
@@ -330,7 +391,8 @@ class EventReader:
 
     def dtype(self, stream: str = "events") -> np.dtype:
         group = self._stream(stream)
-        return np.dtype([(name, group[name].dtype) for name in group.attrs["fields"]])
+        return np.dtype([(name, np.bool_ if group[name].attrs.get(BOOL_ATTR) == "bool" else group[name].dtype)
+                         for name in group.attrs["fields"]])
 
     def ms_to_idx(self, stream: str = "events") -> np.ndarray:
         return self._stream(stream)["ms_to_idx"][:]
@@ -410,7 +472,7 @@ class EventReader:
         b = max(a, b)
         out = np.empty(b - a, dtype=dtype)
         for name in dtype.names or ():
-            out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]
+            out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]  # uint8 0/1 -> bool where marked
         return out
 
     def frames(self, name: str) -> tuple[np.ndarray, np.ndarray]:

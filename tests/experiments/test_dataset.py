@@ -156,8 +156,15 @@ def test_cli_resumes_and_reports(reference, tmp_path, capsys):
 
 def test_evreal_folders_import_back(reference):
     _, out, _, _ = reference
+    assert len(os.listdir(out / "evreal")) >= 2
     for i in range(N):
         folder = out / "evreal" / f"seq_{i:05d}"
+        record = json.loads(marker(out, i).read_text())
+        if record["counts"]["events"] < 2:  # (here seq 1, dvs128, with 1 event) EVREAL cannot load that
+            assert record["evreal"] is None and "fewer than 2" in record["evreal_skipped"]
+            assert not folder.exists()
+            continue
+        assert "evreal_skipped" not in record
         assert sorted(os.listdir(folder)) == sorted(EVENT_FILES + IMAGE_FILES + (METADATA,))
         events, images, t_us, width, height = import_evreal(folder)
         with EventReader(shard(out, i)) as r:
@@ -244,3 +251,19 @@ def test_a_second_dataset_run_on_the_same_folder_is_refused(tmp_path, capsys):
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_sequence_without_events_gets_no_evreal_folder_and_counts_as_done(tmp_path, caplog):
+    """An ideal sensor under a steady lamp fires no DVS event; EVREAL cannot load such a folder, so
+    none is written, the marker says why, and a rerun does not redo the sequence."""
+    config = load_dataset_config(write_config(tmp_path, sequences=1, sensors=["ideal"], emulators=["dvs"],
+                                              randomize={"waveforms": ["dc"]}))
+    out = tmp_path / "out"
+    with caplog.at_level("WARNING", logger="gevsim.experiments.dataset"):
+        summary = generate(config, out, cache_dir=tmp_path / "cache")
+    assert summary["done"] == 1 and summary["counts"]["events"] == 0
+    record = json.loads(marker(out, 0).read_text())
+    assert record["evreal"] is None and "EVREAL cannot load a sequence with fewer than 2" in record["evreal_skipped"]
+    assert not (out / "evreal" / "seq_00000").exists() and "not written" in caplog.text
+    assert finished(config, out, 0) == record
+    assert generate(config, out, cache_dir=tmp_path / "cache")["skipped"] == 1

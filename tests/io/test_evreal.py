@@ -8,7 +8,7 @@ import pytest
 
 from gevsim.errors import ConfigError
 from gevsim.events.types import BRIGHTNESS_DTYPE
-from gevsim.io.evreal import export_evreal, import_evreal
+from gevsim.io.evreal import TooFewEventsError, export_evreal, import_evreal
 
 W, H = 32, 24
 
@@ -145,3 +145,26 @@ def test_import_errors_name_the_file(sequence, name, bad, match):
         np.save(path, bad)
     with pytest.raises(ConfigError, match=match):
         import_evreal(folder)
+
+
+def evreal_time_span(folder):
+    """The first step of EVREAL's MemMapDataset.load_data (github.com/ercanburak/EVREAL, dataset.py):
+    the sequence's time span is the first and last entry of events_ts.npy, squeezed."""
+    t = np.load(folder / "events_ts.npy", mmap_mode="r").squeeze()
+    return t[0], t[-1]
+
+
+@pytest.mark.parametrize("n", [0, 1])
+def test_no_folder_with_fewer_events_than_evreal_can_load(tmp_path, rng, n):
+    images = rng.integers(0, 256, (2, H, W), dtype=np.uint8)
+    few = make_events(n, rng)
+    np.save(tmp_path / "events_ts.npy", few["t"] / 1e6)  # what gevsim used to write
+    with pytest.raises(IndexError):
+        evreal_time_span(tmp_path)
+    with pytest.raises(TooFewEventsError, match=rf"few: not written: {n} events?, and EVREAL cannot load a "
+                                                r"sequence with fewer than 2"):
+        export_evreal(tmp_path / "few", few, images, [0, 1000], width=W, height=H)
+    assert sorted(os.listdir(tmp_path)) == ["events_ts.npy"]  # nothing written
+    two = make_events(2, rng)
+    export_evreal(tmp_path / "two", two, images, [0, 1000], width=W, height=H)
+    assert evreal_time_span(tmp_path / "two") == (two["t"][0] / 1e6, two["t"][1] / 1e6)

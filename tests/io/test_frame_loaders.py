@@ -77,11 +77,11 @@ def test_evreal_frames(tmp_path, rng):
     from gevsim.io.evreal import export_evreal
 
     images = rng.integers(0, 256, (3, 4, 6), dtype=np.uint8)
-    export_evreal(tmp_path / "seq", np.zeros(0, BRIGHTNESS_DTYPE), images, np.array([0, 5000, 10000]),
-                  width=6, height=4)
+    two_events = np.zeros(2, BRIGHTNESS_DTYPE)  # EVREAL folders hold at least two events
+    export_evreal(tmp_path / "seq", two_events, images, np.array([0, 5000, 10000]), width=6, height=4)
     frames, t = load_evreal_frames(tmp_path / "seq")
     np.testing.assert_array_equal(frames, images / 255.0)
     np.testing.assert_allclose(t, [0.0, 0.005, 0.01])
-    export_evreal(tmp_path / "bare", np.zeros(0, BRIGHTNESS_DTYPE), None, None, width=6, height=4)
+    export_evreal(tmp_path / "bare", two_events, None, None, width=6, height=4)
     with pytest.raises(ConfigError, match="no ground-truth images"):
         load_evreal_frames(tmp_path / "bare")

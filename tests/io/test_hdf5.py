@@ -161,7 +161,10 @@ def test_multiple_streams_frames_arrays_and_attrs(tmp_path, rng):
     with h5py.File(path) as f:
         assert f["gradient_events"].attrs["method"] == "lehtonen"
         assert f["events/t"].compression == "gzip" and f["events/t"].dtype == np.int64
-        assert f["events/p"].dtype == np.bool_ and f["gradient_events/axis"].dtype == np.uint8
+        assert f["events/p"].dtype == np.uint8 and f["gradient_events/axis"].dtype == np.uint8
+        np.testing.assert_array_equal(f["events/p"][()], bright["p"].astype(np.uint8))  # DSEC: 1 ON, 0 OFF
+        assert f["ms_to_idx"] == f["events/ms_to_idx"] and f["t_offset"][()] == 0  # DSEC's root layout
+        assert f["events/x"].attrs["units"] == "px" and "meaning" in f["gradient_events/p"].attrs
 
 
 def test_explicit_end_pads_every_stream(tmp_path):
