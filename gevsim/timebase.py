@@ -3,6 +3,7 @@ stage that consumes a chunk of samples over time (:func:`check_chunk`)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -15,6 +16,8 @@ from gevsim.config import FromTable
 #: The shortest duration an emulation may have: event files count time in whole microseconds, so a
 #: shorter one has no tick to put an event on and no length to give a rate.
 MIN_DURATION_S = 1e-6
+#: The most ground-truth frames one emulation writes (each is two float32 images in the file).
+MAX_FRAMES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -29,7 +32,7 @@ class TimeGrid(FromTable):
     duration_s : how long to emulate; None: the scene's ``[sequence] duration_s``.
     step_s : the pixel model's time step (a whole number of them must fill the duration).
     chunk_steps : steps processed per chunk (bounds memory, not results).
-    frame_rate_hz : ground-truth frames per second (0: none).
+    frame_rate_hz : ground-truth frames per second (0: none; at most :data:`MAX_FRAMES` frames).
     """
 
     duration_s: float | None = None
@@ -41,6 +44,7 @@ class TimeGrid(FromTable):
         if self.duration_s is not None:
             object.__setattr__(self, "duration_s", real(self.duration_s, "duration_s", low=0.0, low_open=True))
             _check_duration(self.duration_s)
+            self._check_frames(self.duration_s)
         object.__setattr__(self, "step_s", real(self.step_s, "step_s", low=0.0, low_open=True))
         object.__setattr__(self, "chunk_steps", integer(self.chunk_steps, "chunk_steps", low=1))
         object.__setattr__(self, "frame_rate_hz", real(self.frame_rate_hz, "frame_rate_hz", low=0.0))
@@ -51,6 +55,7 @@ class TimeGrid(FromTable):
         """The number of steps in ``duration_s`` (the grid's own duration, or the scene's when it has none);
         FieldError when it is not a whole number of steps longer than one."""
         _check_duration(duration_s)
+        self._check_frames(duration_s)
         if self.step_s >= duration_s:
             raise FieldError("step_s", f"step_s = {self.step_s} must be shorter than the duration {duration_s} s")
         steps = duration_s / self.step_s
@@ -58,6 +63,13 @@ class TimeGrid(FromTable):
             raise FieldError("step_s", f"the duration {duration_s} s is not a whole number of steps of "
                                        f"{self.step_s} s")
         return int(round(steps))
+
+    def _check_frames(self, duration_s: float) -> None:
+        frames = math.floor(duration_s * self.frame_rate_hz + 1e-9) + 1 if self.frame_rate_hz > 0 else 0
+        if frames > MAX_FRAMES:
+            raise FieldError("frame_rate_hz", f"frame_rate_hz = {self.frame_rate_hz:g} over {duration_s:g} s makes "
+                                              f"{frames:.4g} ground-truth frames; at most {MAX_FRAMES} are written "
+                                              "(1000 s at 1 kHz): lower frame_rate_hz")
 
     def frame_times_s(self, duration_s: float) -> np.ndarray:
         """Ground-truth frame times in [0, ``duration_s``] (none when ``frame_rate_hz`` is 0)."""

@@ -61,7 +61,7 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
             progress: Progress | None = None) -> Setup:
     """Render (or load) the basis, and build the photocurrent basis and the sensor. The
     counterfactual variants of a run share it (:func:`counterfactual`)."""
-    manifest = override(load(config.scene), **{k: v for k, v in config.render.items()})
+    manifest = override(load(config.scene), source=config.source or None, **config.render)
     duration = config.duration_s or manifest.duration_s
     manifest = override(manifest, duration_s=duration)
     check_consistency(config, duration_s=duration)
@@ -145,6 +145,23 @@ def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.nd
     return mix_poses(setup.current_basis, setup.basis_times_s, t_s, weights)
 
 
+def check_frames_fit(config: EmulationConfig, out: str | os.PathLike, *, width: int, height: int,
+                     duration_s: float) -> None:
+    """Refuse, before any work, ground-truth frames that would not fit on the disk that ``out`` goes to
+    (their size before compression: two float32 images a frame, and an APS frame with ``aps``)."""
+    from gevsim._resources import free_disk_bytes, gib
+
+    check_consistency(config, duration_s=duration_s)  # the time grid first (at most MAX_FRAMES frames)
+    frames = len(config.time.frame_times_s(duration_s))
+    need = frames * width * height * (2 * 4 + (2 if config.aps else 0))
+    free = free_disk_bytes(out)
+    if free is not None and need > free:
+        raise ConfigError(f"{frames} ground-truth frames of {width}x{height} px (frame_rate_hz = "
+                          f"{config.frame_rate_hz:g} over {duration_s:g} s) take up to {gib(need)}; "
+                          f"{gib(free)} are free where {out} goes", source=config.source,
+                          key="emulation.frame_rate_hz")
+
+
 def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
         flicker: bool = True, noise: bool = True, progress: Progress | None = None,
         render_progress: Progress | None = None, setup: Setup | None = None,
@@ -156,6 +173,10 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     (:meth:`gevsim.io.EventWriter.close`): a failure there leaves an earlier ``out`` untouched.
     """
     start = time.perf_counter()
+    if setup is None:
+        manifest = override(load(config.scene), source=config.source or None, **config.render)
+        check_frames_fit(config, out, width=manifest.render.width, height=manifest.render.height,
+                         duration_s=config.duration_s or manifest.duration_s)
     setup = setup if setup is not None else prepare(config, cache_dir=cache_dir, progress=render_progress)
     setup = counterfactual(setup, flicker=flicker, noise=noise)
     render_s = time.perf_counter() - start

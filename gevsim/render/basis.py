@@ -283,6 +283,25 @@ class BasisSet:
         return mix_poses(self.images, self.times_s, centre, w).astype(np.float32, copy=False)
 
 
+def basis_bytes(poses: int, groups: int, settings: RenderSettings) -> int:
+    """Memory a basis takes while an emulation uses it: float32 images and noise samples
+    (:class:`BasisSet`) and the float64 photocurrent and its noise made from them."""
+    channels = 1 if settings.flavour == "mono" else 3
+    return int(poses) * int(groups) * settings.width * settings.height * (2 * 4 * channels + 2 * 8)
+
+
+def check_memory(poses: int, groups: int, settings: RenderSettings, *, source: str | None = None) -> None:
+    """Refuse, before any rendering, a basis that would not fit in this machine's memory."""
+    from gevsim._resources import gib, physical_memory_bytes
+
+    need, have = basis_bytes(poses, groups, settings), physical_memory_bytes()
+    if have is not None and need > have:
+        key = "render.max_px_per_pose" if poses > 1 else "render.width"
+        raise ConfigError(f"{poses} poses x {groups} light groups of {settings.width}x{settings.height} px need about "
+                          f"{gib(need)} of memory; this machine has {gib(have)}: render smaller, or fewer poses "
+                          "(a larger max_px_per_pose, a shorter duration)", source=source, key=key)
+
+
 def render_basis(
     scene: MitsubaScene,
     *,
@@ -310,6 +329,7 @@ def render_basis(
     r = m.render
     times = scene.pose_times() if times_s is None else np.asarray(times_s, float)
     groups = m.group_names
+    check_memory(len(times), len(groups), r, source=m.source)
     waveforms = tuple(scene.group(g).waveform for g in groups)
     mixtures = mixture_weights([_value_range(w, name) for w, name in zip(waveforms, groups)])
     request = quality_request(r, mixtures, resolve_target(r, smallest_threshold_ln))

@@ -21,7 +21,7 @@ from gevsim.config import TomlReader, read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.illumination import Waveform
 from gevsim.illumination import from_spec as waveform_from_spec
-from gevsim.render.quality import RENDER_KEYS, RenderSettings, quality_settings, render_settings
+from gevsim.render.quality import RENDER_KEYS, RenderSettings, check_render_size, quality_settings, render_settings
 from gevsim.render.quality import check_render_overrides as check_render_overrides  # re-exported (it lived here)
 
 TABLES = ("scene", "render", "sequence", "camera", "motion", "light_groups", "optics")
@@ -336,6 +336,8 @@ def override(manifest: SceneManifest, *, source: str | None = None, **changes: A
         if isinstance(value, (int, float)) and not isinstance(value, bool) and key != "seed":
             r.number(changes, key, "render", positive=True)
     changes.update(quality_settings(changes, r, "render"))
+    check_render_size(changes.get("width", manifest.render.width), changes.get("height", manifest.render.height), r,
+                      "render")
     render = raw.setdefault("render", {})
     if "spp" in changes:  # a fixed sample count: the draft mode
         changes["noise_target_ln"] = None

@@ -93,6 +93,22 @@ class RenderSettings:
         return self.noise_target_ln is not None
 
 
+#: The largest render gevsim accepts, in pixels per image: 8K UHD (7680 x 4320) fits; event sensors have about
+#: 1 Mpx at most. Every basis image is held in memory (float32 RGB, with its noise sample: 24 bytes a pixel).
+MAX_RENDER_PX = 2**25
+
+
+def check_render_size(width: int, height: int, r: TomlReader, where: str) -> None:
+    """Refuse a render larger than :data:`MAX_RENDER_PX`, naming the key and the numbers."""
+    px = int(width) * int(height)
+    if px > MAX_RENDER_PX:
+        from gevsim._resources import gib
+
+        r.fail(f"{where}.width", f"a {width}x{height} render is {px / 1e6:.4g} Mpx ({gib(24 * px)} per light group "
+                                 f"and pose in memory); gevsim renders at most {MAX_RENDER_PX / 1e6:.4g} Mpx "
+                                 "(8K UHD, 7680x4320, fits)")
+
+
 def render_settings(table: dict, r: TomlReader, where: str = "render") -> RenderSettings:
     """A manifest's ``[render]`` table as :class:`RenderSettings` (errors name the key)."""
     check_keys(table, RENDER_KEYS, source=r.source, where=where)
@@ -109,6 +125,7 @@ def render_settings(table: dict, r: TomlReader, where: str = "render") -> Render
     )
     if settings.flavour not in FLAVOURS:
         r.fail(f"{where}.flavour", f"expected 'rgb', 'mono' or 'spectral', got {settings.flavour!r}")
+    check_render_size(settings.width, settings.height, r, where)
     return settings
 
 
@@ -118,6 +135,7 @@ def check_render_overrides(table: dict, r: TomlReader, where: str) -> None:
     for key in ("width", "height", "spp"):
         if key in table:
             r.number(table, key, where, positive=True, integer=True)
+    check_render_size(table.get("width", 1), table.get("height", 1), r, where)
     if "seed" in table:
         r.number(table, "seed", where, minimum=0, integer=True)
     if "max_px_per_pose" in table:

@@ -14,7 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from gevsim.errors import ConfigError
 from gevsim.render.manifest import CameraKey, Motion, SceneManifest
+
+#: The most poses a scene may be rendered at (each is a render of every light group; at 1 s a render, a day).
+MAX_POSES = 100_000
 
 
 @dataclass(frozen=True)
@@ -137,7 +141,13 @@ def pose_times(manifest: SceneManifest, probe_points: dict, centres: dict, *, sa
     # equal increments of it, so fast and slow parts of a trajectory both stay
     # under the bound.
     cum = np.concatenate([[0.0], np.cumsum(step.max(axis=1))]) if step.size else np.zeros(len(t))
-    n = max(1, math.ceil(cum[-1] / r.max_px_per_pose))
+    poses = cum[-1] / r.max_px_per_pose
+    if poses > MAX_POSES:
+        raise ConfigError(f"max_px_per_pose = {r.max_px_per_pose:g} splits {cum[-1]:.4g} px of image motion into "
+                          f"{poses:.4g} poses, each a render of every light group; at most {MAX_POSES} are allowed: "
+                          "raise max_px_per_pose (1 px keeps motion smooth)", source=manifest.source,
+                          key="render.max_px_per_pose")
+    n = max(1, math.ceil(poses))
     if cum[-1] == 0:
         return np.linspace(0.0, manifest.duration_s, n + 1)
     return np.interp(np.linspace(0.0, cum[-1], n + 1), cum, t)

@@ -144,7 +144,7 @@ def test_malformed_study_config_exits_2(tmp_path, capsys, sweep, extra, text):
 
 @pytest.mark.parametrize("grid, text", [("duration_s = 1e-9\nstep_s = 1e-10", "study.duration_s: duration_s = 1e-09 "
                                                                            "is shorter than 1 us"),
-                                        ("duration_s = 0.003\nstep_s = 7e-4", "study.step_s: the duration")])
+                                        ("duration_s = 0.003\nstep_s = 4e-4", "study.step_s: the duration")])
 def test_a_bad_time_grid_fails_before_any_work(tmp_path, capsys, grid, text):
     cfg = write_study(tmp_path)
     cfg.write_text(cfg.read_text().replace("duration_s = 0.003\nstep_s = 5e-5", grid))
