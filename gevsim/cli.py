@@ -35,6 +35,17 @@ def _non_negative(text: str) -> float:
     return value
 
 
+def _non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (a seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return value
+
+
 def _progress(desc: str, enabled: bool, unit: str = "pose"):
     """A ``progress(done, total)`` callback drawing a tqdm bar (or nothing)."""
     if not enabled:
@@ -119,6 +130,8 @@ def cmd_emulate(args: argparse.Namespace) -> int:
         raise ConfigError("give exactly one of CONFIG.toml, --frames DIR, --evreal DIR or --video FILE")
     if Path(args.out).suffix not in (".h5", ".hdf5"):
         raise ConfigError(f"--out must name an .h5 file, got {args.out!r}", key="--out")
+    if Path(args.out).is_dir():
+        raise ConfigError(f"{args.out} is a folder; name an .h5 file", key="--out")
     if args.config is None:
         return _emulate_frames(args)
     from gevsim.emulation import load_config, run
@@ -174,6 +187,11 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     from gevsim.evaluation import reconstruct_file, write_reconstructions
 
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
+    if not methods:
+        from gevsim.evaluation.methods import METHODS
+
+        raise ConfigError(f"no method named in {', '.join(map(repr, args.method))}; choose from "
+                          f"{', '.join(METHODS)}", key="--method")
     results, gt, tone = [], None, None
     for method in methods:
         rec, gt, tone = reconstruct_file(args.file, method, mean=args.mean, c=args.c, contrast_ln=args.contrast,
@@ -301,7 +319,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="noise-target mode: stop after about S seconds of rendering")
     r.add_argument("--denoise", action=argparse.BooleanOptionalAction, default=None,
                    help="denoise the group images with Intel Open Image Denoise (biased; see benchmarks/README.md)")
-    r.add_argument("--seed", type=int)
+    r.add_argument("--seed", type=_non_negative_int)
     r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_render)
@@ -313,7 +331,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--evreal", metavar="DIR", help="frame mode: an EVREAL sequence folder")
     e.add_argument("--video", metavar="FILE", help="frame mode: a video file (needs imageio)")
     e.add_argument("--fps", type=_positive, help="frame rate when the frames carry no timestamps")
-    e.add_argument("--seed", type=int, default=0, help="frame mode: seed of the DVS threshold mismatch")
+    e.add_argument("--seed", type=_non_negative_int, default=0, help="frame mode: seed of the DVS threshold mismatch")
     e.add_argument("--no-flicker", action="store_true", help="replace every lamp waveform by its mean")
     e.add_argument("--no-noise", action="store_true", help="ideal pixel: no noise, no mismatch, no leak")
     e.add_argument("--cache", metavar="DIR", help="basis image cache")
