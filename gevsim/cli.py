@@ -37,6 +37,17 @@ def _non_negative(text: str) -> float:
     return value
 
 
+def _non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (a seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return value
+
+
 def _progress(desc: str, enabled: bool, unit: str = "pose"):
     """A ``progress(done, total)`` callback drawing a tqdm bar (or nothing: with ``-q``, or when
     stderr is not a terminal, where a bar's redraws would fill a log file)."""
@@ -171,6 +182,8 @@ def cmd_emulate(args: argparse.Namespace) -> int:
         raise ConfigError("give exactly one of CONFIG.toml, --frames DIR, --evreal DIR or --video FILE")
     if Path(args.out).suffix not in (".h5", ".hdf5"):
         raise ConfigError(f"--out must name an .h5 file, got {args.out!r}", key="--out")
+    if Path(args.out).is_dir():
+        raise ConfigError(f"{args.out} is a folder; name an .h5 file", key="--out")
     if args.config is None:
         return _emulate_frames(args)
     from gevsim.emulation import load_config, run
@@ -239,7 +252,10 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
 
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
     if not methods:
-        raise ConfigError(f"no method named in {','.join(args.method)!r}", key="--method")
+        from gevsim.evaluation.methods import METHODS
+
+        raise ConfigError(f"no method named in {', '.join(map(repr, args.method))}; choose from "
+                          f"{', '.join(METHODS)}", key="--method")
     results, gt, tone = [], None, None
     update, close = _progress("reconstruct", not args.quiet, unit="method")
     try:
@@ -436,7 +452,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="noise-target mode: stop after about S seconds of rendering")
     r.add_argument("--denoise", action=argparse.BooleanOptionalAction, default=None,
                    help="denoise the group images with Intel Open Image Denoise (biased; see benchmarks/README.md)")
-    r.add_argument("--seed", type=int)
+    r.add_argument("--seed", type=_non_negative_int)
     r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_render)

@@ -39,3 +39,82 @@ def test_numeric_flags_are_checked_by_the_parser(capsys):
     with pytest.raises(SystemExit) as exit_:
         cli.main(["reconstruct", "f.h5", "--method", "dct", "--out", "o", "--c", "nan"])
     assert exit_.value.code == 2 and "--c: must be a positive number" in capsys.readouterr().err
+
+
+DATA = __import__("pathlib").Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module")
+def frames_file(tmp_path_factory):
+    """A small emulation file from frame mode (no rendering)."""
+    import numpy as np
+
+    from gevsim.emulation import run_frames
+
+    y, x = np.mgrid[0:18, 0:24]
+    frames = np.array([0.3 + 0.2 * np.sin(x / 4.0 + k) * np.cos(y / 5.0) for k in range(4)])
+    path = tmp_path_factory.mktemp("frames") / "f.h5"
+    run_frames(frames, np.arange(4) / 30.0, path)
+    return path
+
+
+def test_emulate_into_a_folder_fails_before_any_work(tmp_path, capsys):
+    (tmp_path / "out.h5").mkdir()
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(f'[emulation]\nscene = "{DATA / "card.toml"}"\n[render]\nwidth = 24\nheight = 18\nspp = 2\n')
+    assert cli.main(["emulate", str(cfg), "--out", str(tmp_path / "out.h5"), "--cache", str(tmp_path / "c"),
+                     "-q"]) == 2
+    assert capsys.readouterr().err == f"gevsim: error: --out: {tmp_path / 'out.h5'} is a folder; name an .h5 file\n"
+    assert not (tmp_path / "c").exists() and list((tmp_path / "out.h5").iterdir()) == []
+    from gevsim.emulation import load_config, run
+
+    with pytest.raises(ConfigError, match="out.h5: is a folder"):
+        run(load_config(cfg), tmp_path / "out.h5", cache_dir=tmp_path / "c")
+    assert not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["render", "card", "--out", "o", "--seed", "-1"], "argument --seed: expected a non-negative integer, got '-1'"),
+    (["emulate", "--frames", "d", "--out", "o.h5", "--seed", "-1"], "argument --seed: expected a non-negative integer"),
+    (["reconstruct", "f.h5", "--method", "dct", "--out", "o", "--c", "-1"], "argument --c: must be a positive number"),
+])
+def test_negative_seeds_and_scales_are_refused_by_the_parser(capsys, argv, text):
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(argv)
+    assert exit_.value.code == 2 and text in capsys.readouterr().err
+
+
+def test_the_library_refuses_them_too(frames_file):
+    from gevsim.evaluation import reconstruct_file
+    from gevsim.render import load, override
+
+    with pytest.raises(ConfigError, match=r"render\.seed: .*-1"):
+        override(load(DATA / "card.toml"), seed=-1)
+    for c in (-1.0, 0.0, float("inf")):
+        with pytest.raises(ConfigError, match="c: the Poisson scale must be a finite number > 0"):
+            reconstruct_file(frames_file, "dct", c=c)
+    with pytest.raises(ConfigError, match="contrast_ln"):
+        reconstruct_file(frames_file, "direct", contrast_ln=-0.2)
+
+
+@pytest.mark.parametrize("methods", [",", " , ,"])
+def test_an_empty_method_list_is_one_line(tmp_path, capsys, frames_file, methods):
+    assert cli.main(["reconstruct", str(frames_file), "--method", methods, "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("gevsim: error: --method: no method named") and err.count("\n") == 1
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("attr", ["width", "height", "t_end_us"])
+def test_a_file_missing_a_root_attribute_is_named(tmp_path, capsys, frames_file, attr):
+    import shutil
+
+    import h5py
+
+    bad = tmp_path / "bad.h5"
+    shutil.copy(frames_file, bad)
+    with h5py.File(bad, "a") as f:
+        del f.attrs[attr]
+    assert cli.main(["reconstruct", str(bad), "--method", "dct", "--out", str(tmp_path / "r")]) == 2
+    assert capsys.readouterr().err == (f"gevsim: error: {bad}: root attribute {attr!r} is missing: not a file "
+                                       "written by gevsim, or damaged\n")

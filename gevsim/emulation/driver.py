@@ -173,6 +173,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     (:meth:`gevsim.io.EventWriter.close`): a failure there leaves an earlier ``out`` untouched.
     """
     start = time.perf_counter()
+    if os.path.isdir(out):
+        raise ConfigError("is a folder; the output is an .h5 file", source=str(out))
     if setup is None:
         manifest = override(load(config.scene), source=config.source or None, **config.render)
         check_frames_fit(config, out, width=manifest.render.width, height=manifest.render.height,

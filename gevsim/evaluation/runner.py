@@ -10,6 +10,7 @@ photodiode would measure. Scores are EVREAL's, on frames tone-mapped by
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -78,6 +79,12 @@ def reconstruct_file(path: str | Path, method: str, *, mean: str = "ground-truth
         raise ConfigError(str(exc), key="method") from None
     if mean not in MEANS:
         raise ConfigError(f"unknown mean {mean!r}; choose from {', '.join(MEANS)}", key="mean")
+    if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or c <= 0:
+        raise ConfigError(f"the Poisson scale must be a finite number > 0, got {c!r}", key="c")
+    if contrast_ln is not None and (isinstance(contrast_ln, bool) or not isinstance(contrast_ln, (int, float))
+                                    or not math.isfinite(contrast_ln) or contrast_ln <= 0):
+        raise ConfigError(f"the contrast step must be a finite number > 0 (ln units), got {contrast_ln!r}",
+                          key="contrast_ln")
     with EventReader(path) as r:
         gt, t_us, is_log = ground_truth(r, reference)
         frames = entry.run(r, gt, t_us, c=c, contrast_ln=contrast_ln, is_log=is_log)

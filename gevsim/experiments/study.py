@@ -149,9 +149,17 @@ def load_study(path: str | Path) -> Study:
                                         f"got {v!r}")
     for values in sweep.get("thresholds_ln", []):
         if (not isinstance(values, list) or not values
-                or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in values)):
-            r.fail("sweep.thresholds_ln",
-                   f"expected lists of positive numbers (one threshold set each), got {values!r}")
+                or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) and t > 0
+                           for t in values)):
+            r.fail("sweep.thresholds_ln", f"expected lists of positive finite numbers (one threshold set each), "
+                                          f"got {values!r}")
+    for v in sweep.get("hysteresis_ln", []):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            r.fail("sweep.hysteresis_ln", f"expected non-negative numbers, got {v!r}")
+    for axis, what in (("sensor", "sensor preset names or .toml paths"), ("scene", "scene names or .toml paths")):
+        for v in sweep.get(axis, []):
+            if not isinstance(v, str):
+                r.fail(f"sweep.{axis}", f"expected {what}, got {v!r}")
     for method in st.get("methods", ["dct", "direct"]):
         try:
             needs = check_method(method).emulator
@@ -178,8 +186,55 @@ def load_study(path: str | Path) -> Study:
             base["duration_s"])
     except FieldError as err:
         r.fail(f"study.{err.field}", str(err))
-    return Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
-                 text=path.read_text(), description=str(st.get("description", "")))
+    if not isinstance(base["sensor"], str):
+        r.fail("study.sensor", f"expected a sensor preset name or .toml path, got {base['sensor']!r}")
+    study = Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
+                  text=path.read_text(), description=str(st.get("description", "")))
+    _check_runs(study, r)
+    return study
+
+
+def _message(exc: ConfigError) -> str:
+    """An error's message without the key it names (the caller names its own)."""
+    text = str(exc)
+    return text[len(exc.key) + 2:] if exc.key and exc.source is None and text.startswith(f"{exc.key}: ") else text
+
+
+def _check_runs(study: Study, r: TomlReader) -> None:
+    """Every sweep value, and every run's combination of them, as the runs will use them: before the first
+    run starts, errors name the study file, the sweep key and the value (or run)."""
+    from gevsim.pixel.presets import with_overrides
+
+    sweep = study.axes
+    sensors = sweep.get("sensor", [study.base["sensor"]])
+    presets = {}
+    for i, name in enumerate(sensors):
+        try:
+            presets[name] = load_preset(name)
+        except ConfigError as exc:
+            key = "sweep.sensor" if "sensor" in sweep else "study.sensor"
+            r.fail(key, f"value {i + 1} of {len(sensors)}: {_message(exc)}" if "sensor" in sweep else _message(exc))
+    for axis in (a for a in SENSOR_AXES if a in sweep):
+        for i, value in enumerate(sweep[axis]):
+            for preset in presets.values():
+                try:
+                    with_overrides(preset, {axis: value})
+                except ConfigError as exc:
+                    r.fail(f"sweep.{axis}", f"value {i + 1} of {len(sweep[axis])}: {_message(exc)}")
+    runs = study.runs()
+    for k, params in enumerate(runs):
+        where = f"run {k + 1} of {len(runs)}: {json.dumps(params)}"
+        thresholds = params.get("thresholds_ln", (0.05, 0.1, 0.2))
+        hysteresis = params.get("hysteresis_ln", 0.0)
+        if hysteresis >= min(thresholds):
+            r.fail("sweep.hysteresis_ln", f"hysteresis_ln = {hysteresis} must be below the smallest threshold "
+                                          f"{min(thresholds)} ({where})")
+        overrides = {a: params[a] for a in SENSOR_AXES if a in params}
+        if len(overrides) > 1:
+            try:
+                with_overrides(presets[params.get("sensor", study.base["sensor"])], overrides)
+            except ConfigError as exc:
+                r.fail("sweep", f"{_message(exc)} ({where})")
 
 
 def flicker_group(study: Study, scene: str) -> str:

@@ -11,7 +11,8 @@ with an exclusive ``flock`` while it exists, so a stage that nobody holds is the
 leftover of a killed process (kill -9 runs no cleanup). A new stage of the same
 target removes such leftovers first (:func:`remove_stale`), and studies, datasets and
 the render cache sweep their folders (:func:`sweep_stale`); a stage a live process
-holds is never touched, so concurrent writers are safe.
+holds is never touched, so concurrent writers are safe. A committed output has the
+mode the process's umask gives new files and folders (the stage itself is 0600/0700).
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ _STAGE = re.compile(r"^\.(?P<name>.+)\." + TAG + r"[a-z0-9_]{8}(?P<suffix>\.[A-Z
 #: The lock file of an output folder that one run at a time writes (:func:`exclusive`).
 LOCK_NAME = ".gevsim.lock"
 _held_lock = threading.Lock()
+_umask_lock = threading.Lock()
 _held: dict[str, list] = {}  # folder -> [descriptor, depth]: this process's locks
 #: An unlocked stage younger than this is left alone: a new stage is locked within microseconds of
 #: being created, and this margin covers that instant.
@@ -54,6 +56,26 @@ GRACE_S = 1.0
 #: Where locks cannot be taken (no fcntl, or a file system that refuses them), a stage counts as a
 #: leftover only when it is older than this.
 STALE_AFTER_S = 3600.0
+
+
+def current_umask() -> int:
+    """The process's umask (from /proc where it says, so no thread ever sees a changed one)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    with _umask_lock:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
+
+
+def _follow_umask(path: Path, folder: bool) -> None:
+    """Give a stage the mode a plain ``open``/``mkdir`` would have (mkstemp/mkdtemp make 0600/0700)."""
+    os.chmod(path, (0o777 if folder else 0o666) & ~current_umask())
 
 
 def _hold(fd: int) -> int | None:
@@ -189,6 +211,7 @@ class Staged:
     def commit(self) -> None:
         """Rename the stage onto the target; a folder target is swapped (restored if that fails)."""
         try:
+            _follow_umask(self.path, self.folder)  # outputs get the mode the user's umask gives
             if not (self.folder and self.target.is_dir()):
                 os.replace(self.path, self.target)
                 return

@@ -361,12 +361,19 @@ class EventReader:
     def close(self) -> None:
         self._file.close()
 
-    width = property(lambda self: int(self._file.attrs["width"]))
-    height = property(lambda self: int(self._file.attrs["height"]))
-    config_toml = property(lambda self: str(self._file.attrs["config_toml"]))
-    seed = property(lambda self: int(self._file.attrs["seed"]))
-    gevsim_version = property(lambda self: str(self._file.attrs["gevsim_version"]))
-    t_end_us = property(lambda self: int(self._file.attrs["t_end_us"]))
+    def _root(self, name: str):
+        """A root attribute; a missing one is an input error naming the file and the attribute."""
+        if name not in self._file.attrs:
+            raise ConfigError(f"root attribute {name!r} is missing: not a file written by gevsim, or damaged",
+                              source=str(self.path))
+        return self._file.attrs[name]
+
+    width = property(lambda self: int(self._root("width")))
+    height = property(lambda self: int(self._root("height")))
+    config_toml = property(lambda self: str(self._root("config_toml")))
+    seed = property(lambda self: int(self._root("seed")))
+    gevsim_version = property(lambda self: str(self._root("gevsim_version")))
+    t_end_us = property(lambda self: int(self._root("t_end_us")))
 
     @property
     def attrs(self) -> dict:

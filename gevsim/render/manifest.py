@@ -333,7 +333,9 @@ def override(manifest: SceneManifest, *, source: str | None = None, **changes: A
     for key, value in changes.items():
         if key not in RENDER_KEYS:
             raise ConfigError(f"cannot override {key!r}{suggest(key, RENDER_KEYS)}", source=source, key=key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and key != "seed":
+        if key == "seed":
+            r.number(changes, key, "render", minimum=0, integer=True)
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
             r.number(changes, key, "render", positive=True)
     changes.update(quality_settings(changes, r, "render"))
     check_render_size(changes.get("width", manifest.render.width), changes.get("height", manifest.render.height), r,

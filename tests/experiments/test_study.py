@@ -153,6 +153,29 @@ def test_a_bad_time_grid_fails_before_any_work(tmp_path, capsys, grid, text):
     assert text in err and str(cfg) in err and not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("sweep, text", [
+    ('sensor = ["davis346", "davis347"]\n', "sweep.sensor: value 2 of 2: unknown sensor preset 'davis347' (did you "
+                                           "mean 'davis346'?)"),
+    ('sensor = [3]\n', "sweep.sensor: expected sensor preset names or .toml paths, got 3"),
+    ('hysteresis_ln = [0.0, "a"]\n', "sweep.hysteresis_ln: expected non-negative numbers, got 'a'"),
+    ('thresholds_ln = [[inf]]\n', "sweep.thresholds_ln: expected lists of positive finite numbers"),
+    ('hysteresis_ln = [0.0, 0.1]\nthresholds_ln = [[0.2], [0.05, 0.1]]\n',
+     "sweep.hysteresis_ln: hysteresis_ln = 0.1 must be below the smallest threshold 0.05 (run 4 of 4: "),
+    ('fill_factor = [0.5, 2.0]\n', "sweep.fill_factor: value 2 of 2: expected a number in (0, 1.0], got 2.0"),
+    ('cutoff_hz = [100.0, 0.0]\n', "sweep.cutoff_hz: value 2 of 2: "),
+])
+def test_every_sweep_value_is_checked_before_the_first_run(tmp_path, capsys, monkeypatch, sweep, text):
+    def no_work(*args, **kwargs):
+        raise AssertionError("a run started")
+
+    monkeypatch.setattr(repeat_mod, "execute_repeat", no_work)
+    cfg = write_study(tmp_path, sweep='waveform = ["dc"]\n' + sweep)
+    assert main(["study", str(cfg), "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert f"{cfg}: {text}" in err and err.count("\n") == 1
+    assert not (tmp_path / "o").exists() and not (tmp_path / "c").exists()
+
+
 def test_unknown_flicker_group_fails_before_rendering(tmp_path, capsys):
     cfg = write_study(tmp_path)
     cfg.write_text(cfg.read_text().replace('flicker_group = "lamp"', 'flicker_group = "lamps"'))

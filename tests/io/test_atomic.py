@@ -131,3 +131,28 @@ def test_a_swap_killed_half_way_is_undone(tmp_path):
     backdate([old])
     assert remove_stale(out) == [old]
     assert (out / "manifest.json").read_text() == "{}" and not old.exists()
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
+def test_outputs_follow_the_umask(tmp_path, umask):
+    """mkstemp/mkdtemp make 0600/0700 stages; what is committed has the mode a plain open/mkdir would give."""
+    import numpy as np
+
+    from gevsim.events.types import BRIGHTNESS_DTYPE
+    from gevsim.io import EventWriter, atomic_write_text
+
+    old = os.umask(umask)
+    try:
+        atomic_write_text(tmp_path / "a.json", "{}")
+        with atomic_dir(tmp_path / "folder") as stage:
+            (stage / "inside.txt").write_text("x")
+        with EventWriter(tmp_path / "e.h5", width=2, height=2, config_toml="", seed=0) as w:
+            w.append("events", np.zeros(1, BRIGHTNESS_DTYPE))
+        (tmp_path / "plain.txt").write_text("x")
+        (tmp_path / "plain").mkdir()
+    finally:
+        os.umask(old)
+    mode = {p.name: p.stat().st_mode & 0o777 for p in tmp_path.iterdir()}
+    assert mode["a.json"] == mode["e.h5"] == mode["plain.txt"] == 0o666 & ~umask
+    assert mode["folder"] == mode["plain"] == 0o777 & ~umask
+    assert (tmp_path / "folder" / "inside.txt").stat().st_mode & 0o777 == 0o666 & ~umask
