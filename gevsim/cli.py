@@ -37,17 +37,6 @@ def _non_negative(text: str) -> float:
     return value
 
 
-def _non_negative_int(text: str) -> int:
-    """argparse type: an integer >= 0 (a seed)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
 def _progress(desc: str, enabled: bool, unit: str = "pose"):
     """A ``progress(done, total)`` callback drawing a tqdm bar (or nothing: with ``-q``, or when
     stderr is not a terminal, where a bar's redraws would fill a log file)."""
@@ -375,7 +364,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
 
 def _int_at_least(low: int) -> Callable[[str], int]:
     """An argparse type: an integer >= ``low``."""
-    wanted = "a positive integer" if low == 1 else f"an integer >= {low}"
+    wanted = {0: "a non-negative integer", 1: "a positive integer"}.get(low, f"an integer >= {low}")
 
     def parse(text: str) -> int:
         try:
