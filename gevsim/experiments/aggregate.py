@@ -43,6 +43,17 @@ def _put(row: dict, key: str, interval: Interval) -> None:
     row[f"{key}_high"] = interval.high
 
 
+def row_emulators(rows: list[dict]) -> list[str]:
+    """The emulators the result rows carry (registry order)."""
+    return [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
+
+
+def row_methods(rows: list[dict], *, scored: bool = False) -> list[str]:
+    """The reconstruction methods the result rows carry; ``scored``: only those with an SSIM in some row."""
+    methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
+    return [m for m in methods if any(np.isfinite(r[f"{m}_ssim"]) for r in rows)] if scored else methods
+
+
 def interval_of(row: dict, key: str) -> Interval | None:
     """The interval stored under ``key`` (and ``_low``/``_high``) of a row, or None."""
     if f"{key}_low" not in row:

@@ -20,7 +20,7 @@ import gevsim
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments import study_plots
-from gevsim.experiments.aggregate import agreement, interval_of
+from gevsim.experiments.aggregate import agreement, interval_of, row_emulators, row_methods
 from gevsim.experiments.study import Study, run_id
 
 
@@ -42,14 +42,6 @@ def write_table(folder: Path, rows: list[dict]) -> None:
     writer.writerows(flat)
     (folder / "results.csv").write_text(buffer.getvalue())
     (folder / "results.json").write_text(json.dumps(rows, indent=1, default=float))
-
-
-def _emulators(rows: list[dict]) -> list[str]:
-    return [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
-
-
-def _methods(rows: list[dict]) -> list[str]:
-    return [k[:-5] for k in rows[0] if k.endswith("_ssim")]
 
 
 def fmt(row: dict, key: str, digits: int = 3) -> str:
@@ -105,7 +97,7 @@ def answer(rows: list[dict], study: Study) -> list[str]:
               f"events against {noise['dvs']:.3g} for DVS, up to {fmt(worst, 'gradient_noise_per_pixel_s')} "
               f"({_label(worst, study)}).")
     third = ""
-    methods = [m for m in _methods(rows) if any(np.isfinite(r[f"{m}_ssim"]) for r in rows)]
+    methods = row_methods(rows, scored=True)
     by_stream: dict[str, list[str]] = {}
     for m in methods:
         stream = "gradient" if METHODS[m].emulator.startswith("gradient") else "brightness"
@@ -124,13 +116,14 @@ def answer(rows: list[dict], study: Study) -> list[str]:
 def findings(rows: list[dict], study: Study) -> list[str]:
     """Plain-language sentences, each figure with its interval."""
     out = []
+    emulators = row_emulators(rows)
     for row in rows:
-        cells = [f"{EMULATORS[e].label} {fmt(row, f'{e}_flicker_per_pixel_s')}" for e in _emulators(rows)]
+        cells = [f"{EMULATORS[e].label} {fmt(row, f'{e}_flicker_per_pixel_s')}" for e in emulators]
         out.append(f"{_label(row, study)}: flicker-induced ev/px/s " + ", ".join(cells)
                    + f"; rejection ratio {ratio_text(row)}.")
-    disagreements = [f"{_label(r, study)}: {text}" for r in rows for e in _emulators(rows)
+    disagreements = [f"{_label(r, study)}: {text}" for r in rows for e in emulators
                      if (text := agreement(r, e))]
-    checked = sum(1 for r in rows for e in _emulators(rows) if f"{e}_phase_locked_per_pixel_s" in r)
+    checked = sum(1 for r in rows for e in emulators if f"{e}_phase_locked_per_pixel_s" in r)
     if checked:
         if disagreements:
             out.append(f"**The two estimators disagree** in {len(disagreements)} of {checked} (run, stream) pairs "
@@ -138,7 +131,7 @@ def findings(rows: list[dict], study: Study) -> list[str]:
         else:
             out.append(f"The phase-locked estimator (no subtraction) and the counterfactual agree on whether flicker "
                        f"acts in all {checked} (run, stream) pairs where both were made.")
-        leaks = [(r, e) for r in rows for e in _emulators(rows)
+        leaks = [(r, e) for r in rows for e in emulators
                  if r.get(f"{e}_phase_locked_control_per_pixel_s_low", 0.0) > 0]
         if leaks:
             out.append(f"In {len(leaks)} (run, stream) pairs the flicker-free counterfactual itself shows a rate "
@@ -155,7 +148,7 @@ def findings(rows: list[dict], study: Study) -> list[str]:
 def map_findings(rows: list[dict]) -> list[str]:
     """Where flicker events come from: shares at lamp-region borders and in the dimmest quarter."""
     out = []
-    for e in [e for e in _emulators(rows) if e.startswith("gradient") or e == "dvs"]:
+    for e in [e for e in row_emulators(rows) if e.startswith("gradient") or e == "dvs"]:
         sel = [r for r in rows if r.get(f"{e}_flicker_border_share") is not None
                and (iv := interval_of(r, f"{e}_flicker_per_pixel_s")) is not None and iv.low > 0]
         if not sel:
@@ -194,7 +187,7 @@ def render_floor_findings(rows: list[dict]) -> list[str]:
     if missed:
         out.append(f"{len(missed)} of {len(rows)} runs stopped short of the noise target (max_spp or time budget).")
     close = []
-    for e in _emulators(rows):
+    for e in row_emulators(rows):
         n = sum(1 for r in rows if r[f"{e}_render_floor_per_pixel_s"] > 0.2 * abs(r[f"{e}_flicker_per_pixel_s"]))
         if n:
             close.append(f"{e} in {n}")
@@ -210,8 +203,8 @@ def render_floor_findings(rows: list[dict]) -> list[str]:
 
 def key_table(rows: list[dict], study: Study) -> str:
     """Markdown table: the sweep parameters and every headline figure with its 95 % interval."""
-    emulators = _emulators(rows)
-    methods = [m for m in _methods(rows) if any(np.isfinite(r[f"{m}_ssim"]) for r in rows)]
+    emulators = row_emulators(rows)
+    methods = row_methods(rows, scored=True)
     head = (list(study.axes) + [f"{e} flicker ev/px/s" for e in emulators] + ["DVS/gradient ratio"]
             + [f"{e} lamp-locked RMS ev/px/s" for e in emulators if f"{e}_phase_locked_per_pixel_s" in rows[0]]
             + [f"{e} noise ev/px/s" for e in ("dvs", "gradient") if e in emulators]

@@ -17,7 +17,7 @@ import numpy as np
 
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.evaluation.methods import METHODS
-from gevsim.experiments.aggregate import interval_of
+from gevsim.experiments.aggregate import interval_of, row_emulators, row_methods
 from gevsim.experiments.study import Study
 
 #: Physical meaning of sweep axes: axis -> (label, row key giving the plotted value or None for the axis itself).
@@ -198,7 +198,7 @@ def rates(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, 
     x = x_axis(study)
     others, label = series_labels(study)
     groups = list(dict.fromkeys(label(r) for r in rows))
-    emulators = [e for e in EMULATORS if f"{e}_flicker_per_pixel_s" in rows[0]]
+    emulators = row_emulators(rows)
     cols = min(4, len(groups))
     nrows = -(-len(groups) // cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(4.4 * cols + 2.6, 3.6 * nrows + 0.8), squeeze=False,
@@ -237,7 +237,7 @@ def rates(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, 
 
 
 def quality(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, str] | None:
-    methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
+    methods = row_methods(rows)
     if not methods:
         return None
     x = x_axis(study)
@@ -286,7 +286,7 @@ def spectrum(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[st
 
 
 def pareto(folder: Path, rows: list[dict], plt: Any) -> tuple[str, str] | None:
-    methods = [k[:-5] for k in rows[0] if k.endswith("_ssim")]
+    methods = row_methods(rows)
     stream_of = {m: METHODS[m].emulator for m in methods}
     points = [(row[f"{stream_of[m]}_events_per_s"], row[f"{m}_ssim"], m) for row in rows for m in methods
               if f"{stream_of[m]}_events_per_s" in row and np.isfinite(row[f"{m}_ssim"])]
