@@ -24,7 +24,8 @@ import tomli_w
 
 from gevsim.cli import main
 from gevsim.experiments.dataset import generate, load_dataset_config
-from gevsim.experiments.study import collect, load_study, run_study
+from gevsim.experiments.study import load_study
+from gevsim.experiments.study_run import collect, run_study
 
 pytestmark = pytest.mark.slow
 

@@ -20,7 +20,6 @@ same numbers.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import shutil
@@ -33,7 +32,7 @@ import numpy as np
 import gevsim
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.evaluation.methods import METHODS
-from gevsim.experiments.study import Study, flicker_frequency_hz, run_config, run_id
+from gevsim.experiments.study import Study, flicker_group, run_config, run_id
 from gevsim.io import atomic_path, atomic_write_text
 from gevsim.metrics.attribution import PHASE_BINS, phase_histogram
 
@@ -45,6 +44,8 @@ VARIANTS: dict[str, dict[str, Any]] = {"run": {}, "no_flicker": {"flicker": Fals
 FOLDED = ("run", "no_flicker")
 #: Alternation frequency of the render-noise floor when the swept lamp is steady.
 DEFAULT_FLOOR_HZ = 100.0
+#: Time bin of the DVS event-rate spectrum (s).
+SPECTRUM_BIN_S = 1e-4
 
 
 def repeat_seed(study: Study, repeat: int) -> int:
@@ -68,21 +69,27 @@ def finished_repeat(out: str | os.PathLike, rid: str, repeat: int) -> dict | Non
     return record if arrays.is_file() and record.get("repeat") == repeat else None
 
 
-def event_spectrum(t_s: np.ndarray, duration_s: float, *, bin_s: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
-    """Amplitude spectrum of the event rate (events/s per Hz bin), for the harmonics plot."""
-    counts, _ = np.histogram(t_s, bins=max(2, int(round(duration_s / bin_s))), range=(0, duration_s))
-    rate = counts / bin_s
+def _rate_bins(duration_s: float, bin_s: float = SPECTRUM_BIN_S) -> int:
+    return max(2, int(round(duration_s / bin_s)))
+
+
+def event_spectrum(counts: np.ndarray, *, bin_s: float = SPECTRUM_BIN_S) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitude spectrum of the event rate (events/s per Hz bin) from event counts in time bins of
+    ``bin_s`` (:func:`_fold`'s ``rate``), for the harmonics plot."""
+    rate = np.asarray(counts, float) / bin_s
     amp = np.abs(np.fft.rfft(rate - rate.mean())) / len(rate)
     return np.fft.rfftfreq(len(rate), bin_s), amp
 
 
-def _fold(path: Path, stream: str, periods: dict[str, float], shape: tuple[int, int]) -> dict:
-    """Per-pixel counts and, per light group, the phase histogram of a stream, read window by window."""
+def _fold(path: Path, stream: str, periods: dict[str, float], shape: tuple[int, int], duration_s: float) -> dict:
+    """Per-pixel counts, per light group the phase histogram, and the counts in time bins of
+    :data:`SPECTRUM_BIN_S` (``rate``) of a stream, read window by window."""
     from gevsim.io import EventReader
 
     h, w = shape
     per_pixel = np.zeros(h * w, np.int64)
     phases = {g: np.zeros(PHASE_BINS, np.int64) for g in periods}
+    rate = np.zeros(_rate_bins(duration_s), np.int64)
     with EventReader(path) as r:
         for start, end in r.windows(stream, 0, int(r.t_end_us) + 1):  # bounded memory at any event rate
             ev = r.read(stream, start, end)
@@ -90,17 +97,19 @@ def _fold(path: Path, stream: str, periods: dict[str, float], shape: tuple[int, 
             t_s = ev["t"] * 1e-6
             for g, period in periods.items():
                 phases[g] = phases[g] + phase_histogram(t_s, period_s=period)
-    return {"pixels": per_pixel.reshape(h, w), "phases": phases}
+            rate += np.histogram(t_s, bins=rate.size, range=(0, duration_s))[0]
+    return {"pixels": per_pixel.reshape(h, w), "phases": phases, "rate": rate}
 
 
 def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLike, *,
                    cache_dir: str | os.PathLike | None = None, keep_files: bool = False,
-                   threads: int | None = None) -> dict:
+                   threads: int | None = None, rid: str | None = None) -> dict:
     """Emulate repeat ``repeat`` of a run and its counterfactuals, score reconstructions, write the
     repeat's arrays and marker; return its record (picklable: what executors run).
 
     ``threads`` sets numba's threads for this job (a worker of a process pool runs one job per
-    core, so 1 there); None leaves numba's default."""
+    core, so 1 there); None leaves numba's default. ``rid`` is the run's :func:`run_id` when the
+    caller has it (computing it hashes every file of the scene)."""
     from gevsim.emulation import prepare, run
     from gevsim.emulation.driver import render_noise_floor
     from gevsim.emulation.summary import summarize
@@ -115,17 +124,17 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         # The parent rendered (or loaded) every basis before fanning out and logged its quality warnings once.
         logging.getLogger("gevsim.render").setLevel(logging.ERROR)
     start = time.perf_counter()
-    rid = run_id(study, params)
+    rid = run_id(study, params) if rid is None else rid
     marker, arrays, folder = repeat_paths(out, rid, repeat)
     folder.mkdir(parents=True, exist_ok=True)
-    cfg = run_config(study, params)
-    cfg = dataclasses.replace(cfg, seed=repeat_seed(study, repeat))
-    cfg = dataclasses.replace(cfg, text=cfg.to_toml())
+    cfg = run_config(study, params, seed=repeat_seed(study, repeat))
     setup = prepare(cfg, cache_dir=cache_dir)  # rendered once (cache), shared by the four variants
-    frequency = flicker_frequency_hz(study, params, cfg)
     m = setup.manifest
     h, w = m.render.height, m.render.width
     periods = {g: wf.period_s for g, wf in zip(m.group_names, setup.waveforms) if wf.period_s}
+    # Fundamental of the swept group's light (its waveform as the run uses it; None for a steady lamp).
+    group = flicker_group(study, params.get("scene", study.base["scene"]))
+    frequency = 1.0 / periods[group] if group in periods else None
     counts: dict[str, dict[str, int]] = {}
     folded: dict[str, dict[str, dict]] = {}
     for name, kw in VARIANTS.items():
@@ -136,8 +145,8 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         if name == "run":
             stats, summary = summarize(folder / "run.h5"), info
         if name in FOLDED:
-            folded[name] = {e: _fold(folder / f"{name}.h5", EMULATORS[e].stream, periods, (h, w))
-                            for e in study.base["emulators"]}
+            folded[name] = {e: _fold(folder / f"{name}.h5", EMULATORS[e].stream, periods, (h, w),
+                                     summary.duration_s) for e in study.base["emulators"]}
     record: dict[str, Any] = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
               "width": w, "height": h, "duration_s": summary.duration_s, "steps": summary.steps,
               "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts,
@@ -151,10 +160,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         rec, _, _ = reconstruct_file(folder / "run.h5", method, reference="no-flicker")
         record["metrics"][method] = {k: float(v) for k, v in rec.mean_metrics().items()}
     if "dvs" in study.base["emulators"] and repeat == 0:
-        from gevsim.io import EventReader
-
-        with EventReader(folder / "run.h5") as r:
-            f, amp = event_spectrum(r.read("events")["t"] * 1e-6, summary.duration_s)
+        f, amp = event_spectrum(folded["run"]["dvs"]["rate"])
         record["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
     mean_basis = setup.current_basis.mean(axis=0)  # (K, H, W), A per unit waveform
     assert setup.chip_lux_per_a is not None  # prepare() sets it

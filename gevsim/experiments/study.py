@@ -15,7 +15,8 @@ intervals, beside a phase-locked estimate that needs no subtraction
 against the flicker-free reference.
 
 Each (run, repeat) is one job (:mod:`gevsim.experiments.repeat`), run here or by
-an executor (:mod:`gevsim.experiments.executors`); each writes
+an executor (:mod:`gevsim.experiments.executors`) from
+:func:`gevsim.experiments.study_run.run_study`; each writes
 ``runs/<id>/r<k>.json`` last and atomically, so a rerun skips finished jobs and
 interrupted studies resume. The run id hashes the run's settings, the contents of
 its scene's files and the gevsim version (:func:`run_id`): after an edit of the
@@ -62,12 +63,7 @@ import hashlib
 import itertools
 import json
 import math
-import os
-from collections.abc import Callable
-from concurrent.futures import Executor
 from pathlib import Path
-
-import numpy as np
 
 from gevsim import __version__
 from gevsim._validate import FieldError
@@ -76,8 +72,6 @@ from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
-from gevsim.experiments.executors import run_all
-from gevsim.io import atomic_path, exclusive, sweep_stale
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
 from gevsim.timebase import TimeGrid
@@ -273,13 +267,15 @@ def run_scene(study: Study, params: dict) -> str:
     return scene
 
 
-def run_config(study: Study, params: dict) -> EmulationConfig:
+def run_config(study: Study, params: dict, *, seed: int | None = None) -> EmulationConfig:
+    """The emulation config of a run (with noise seed ``seed``; default: the study's)."""
     b = study.base
     group = flicker_group(study, params.get("scene", b["scene"]))
     scene = run_scene(study, params)
     wave = waveform_spec(params)
     cfg = EmulationConfig(
-        scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]), seed=b["seed"],
+        scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]),
+        seed=b["seed"] if seed is None else seed,
         duration_s=b["duration_s"], step_s=b["step_s"], chunk_steps=b["chunk_steps"],
         frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]),
         aps=(any(METHODS[m].needs_aps for m in b["methods"])
@@ -292,19 +288,6 @@ def run_config(study: Study, params: dict) -> EmulationConfig:
         group_scale={group: float(params.get("flicker_scale", 1.0))},
         group_waveform={group: wave} if wave else {}, source=study.source)
     return dataclasses.replace(cfg, text=cfg.to_toml())
-
-
-def flicker_frequency_hz(study: Study, params: dict, cfg: EmulationConfig) -> float | None:
-    """Fundamental frequency of the swept group's light output (None for a steady lamp)."""
-    from gevsim.illumination import from_spec
-    from gevsim.render import load
-
-    group = flicker_group(study, params.get("scene", study.base["scene"]))
-    if group in cfg.group_waveform:
-        waveform = from_spec(cfg.group_waveform[group])
-    else:
-        waveform = next(g.waveform for g in load(cfg.scene).light_groups if g.name == group)
-    return 1.0 / waveform.period_s if waveform.period_s else None
 
 
 def run_id(study: Study, params: dict) -> str:
@@ -320,102 +303,12 @@ def run_id(study: Study, params: dict) -> str:
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
-def run_jobs(study: Study) -> list[tuple[dict, int]]:
-    """Every (run parameters, repeat) of a study, in sweep order."""
-    return [(params, r) for params in study.runs() for r in range(study.base["repeats"])]
-
-
-def _prerender(study: Study, jobs: list[tuple[dict, int]], cache_dir: str | os.PathLike) -> None:
-    """Render (or find in the cache) every basis the jobs need, here, once: workers then only load them."""
-    from gevsim.emulation import prepare
-
-    seen = set()
-    for params, _ in jobs:
-        cfg = run_config(study, params)
-        key = json.dumps([cfg.scene, cfg.render, cfg.sensor, cfg.thresholds_ln, cfg.sensor_overrides],
-                         sort_keys=True, default=str)
-        if key not in seen:
-            seen.add(key)
-            prepare(cfg, cache_dir=cache_dir)
-
-
-def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
-              executor: Executor | None = None, progress: Callable[[int, int], None] | None = None,
-              keep_files: bool = False) -> list[dict]:
-    """Run (or resume) every repeat of every run of a study into ``out``; returns one result row per
-    run (sweep order), with intervals over its repeats (:mod:`gevsim.experiments.aggregate`).
-
-    One job per (run, repeat) (:func:`gevsim.experiments.repeat.execute_repeat`); finished jobs
-    (``runs/<id>/r<k>.json``) are skipped, so interrupted studies resume and a study given more
-    repeats runs only the new ones. ``executor`` None runs the jobs here, one after another; an
-    executor (:func:`gevsim.experiments.executors.make_executor`) runs them in its workers, one numba
-    thread each, after the bases are rendered here once into ``cache_dir`` (default
-    ``out/render-cache``). The numbers do not depend on the executor. ``progress(done, total)``
-    counts jobs. One study at a time per ``out``: a second one (another process) is refused with a
-    :class:`~gevsim.errors.ConfigError` naming the folder (:func:`gevsim.io.exclusive`).
-    """
-    out = Path(out)
-    with exclusive(out, what="study"):  # one study at a time per folder: a second one is refused
-        return _run_study(study, out, cache_dir=cache_dir, executor=executor, progress=progress,
-                          keep_files=keep_files)
-
-
-def _run_study(study: Study, out: Path, *, cache_dir, executor, progress, keep_files) -> list[dict]:
-    from gevsim.experiments import repeat as rep
-
-    (out / "runs").mkdir(parents=True, exist_ok=True)
-    sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
-    jobs = run_jobs(study)
-    todo = [(p, r) for p, r in jobs if rep.finished_repeat(out, run_id(study, p), r) is None]
-    total, done = len(jobs), len(jobs) - len(todo)
-    kwargs: dict = {"keep_files": keep_files}
-    if executor is not None:
-        cache_dir = out / "render-cache" if cache_dir is None else cache_dir
-        if todo:
-            _prerender(study, todo, cache_dir)
-        kwargs["threads"] = 1
-    calls = [((study, p, r, out if executor is None else str(out)),
-              {**kwargs, "cache_dir": None if cache_dir is None else str(cache_dir)}) for p, r in todo]
-    run_all(rep.execute_repeat, calls, executor=executor, progress=progress, done=done, total=total)
-    return collect(study, out)
-
-
-def collect(study: Study, out: str | os.PathLike) -> list[dict]:
-    """The result rows of a finished study (each run's repeats aggregated); each run's per-pixel maps
-    are written to ``runs/<id>/maps.npz``."""
-    from gevsim.experiments.aggregate import aggregate_run
-    from gevsim.experiments.repeat import finished_repeat, repeat_paths
-
-    out = Path(out)
-    rows = []
-    for params in study.runs():
-        rid = run_id(study, params)
-        found = [finished_repeat(out, rid, r) for r in range(study.base["repeats"])]
-        records = [r for r in found if r is not None]
-        if len(records) < len(found):
-            raise ConfigError(f"run {rid} has unfinished repeats; run the study again to finish them",
-                              source=str(out))
-        arrays = []
-        for r in range(study.base["repeats"]):
-            with np.load(repeat_paths(out, rid, r)[1]) as data:
-                arrays.append({k: data[k] for k in data.files})
-        group = flicker_group(study, params.get("scene", study.base["scene"]))
-        row, maps = aggregate_run(records, arrays, study.base["emulators"], study.base["methods"], group)
-        row["flicker_group"] = group
-        with atomic_path(out / "runs" / rid / "maps.npz") as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **maps)
-        rows.append(row)
-    return rows
-
-
 def check_study_scenes(study: Study) -> None:
     """Fail early (before any rendering) on a scene or flicker group that does not exist."""
     from gevsim.render import load
 
     for scene in study.axes.get("scene", [study.base["scene"]]):
-        manifest = load(scene if not str(scene).endswith(".toml") or Path(scene).is_absolute()
-                        else Path(study.source).parent / scene)
+        manifest = load(run_scene(study, {"scene": scene}))
         group = flicker_group(study, scene)
         if group not in manifest.group_names:
             raise ConfigError(f"scene {manifest.name!r} has no light group {group!r}"

@@ -13,7 +13,8 @@ from gevsim.cli import main
 from gevsim.errors import ConfigError
 from gevsim.experiments import repeat as repeat_mod
 from gevsim.experiments.executors import make_executor
-from gevsim.experiments.study import load_study, run_study
+from gevsim.experiments.study import load_study
+from gevsim.experiments.study_run import run_study
 
 DATA = Path(__file__).parents[1] / "data"
 
