@@ -1,11 +1,17 @@
 """Compiled inner loops of the event emulators (numba).
 
 Both kernels walk a chunk of T steps of a signal sampled at the step ends and
-linear in between, and write events into per-block buffers: block b owns
-``buf_*[b, :cap]``. Pixels are split into fixed blocks (rows for gradient
-events), so results do not depend on the number of threads. A full buffer
-sets ``count[b] = cap + 1``; the caller then retries the chunk with larger
-buffers from a copy of the state.
+linear in between. Pixels are split into fixed blocks (rows for gradient
+events), so results do not depend on the number of threads. Block b writes its
+events, in emission order (step by step), into its own region of flat buffers
+(``region[b]``: start, capacity, fill) and records its fill after every step.
+A block whose region is full stops at a step boundary of one pixel (DVS) or one
+row and axis (gradient), before touching that unit's state, and records where
+to resume; the caller grows the regions and calls the kernel again, which goes
+on from there. No finished work is ever redone. :mod:`gevsim.events._collect`
+then gathers the regions into time order. Blocks are taken in the order ``order``
+(interleaved, so that each thread's share mixes parts of the image; results do
+not depend on it).
 """
 
 from __future__ import annotations
@@ -18,107 +24,155 @@ from numba import njit, prange
 BLOCK = 1024
 MAX_EVENTS_PER_STEP = 4096  # per pixel; guards against a vanishing threshold
 
+#: Columns of the ``region`` table (one row per block): where the block's region of the flat
+#: event buffers starts, its capacity, how many events it holds, the step and the pixel (DVS,
+#: counted from the block's first) or axis (gradient) to resume from (RESUME_T = T: finished),
+#: then for each step t of the chunk the fill after step t (so step t's events are
+#: [end(t - 1), end(t)) of the region).
+START, CAP, FILL, RESUME_T, RESUME_I, STEP_END0 = range(6)
+
 #: Gradient event from (T_prev, T), rows T_prev = -1, 0, 1, columns T = -1, 0, 1 (Lehtonen et al., Table 1).
 EVENT_TABLE = np.array([[0, -1, 1], [-1, 0, 1], [-1, 1, 0]], dtype=np.int8)
 
 
-@njit(inline="always")
-def _push(b, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis, t_us, step, pix, p, axis):
-    n = count[b]
-    if n < cap:
-        buf_t[b, n] = t_us
-        buf_step[b, n] = step
-        buf_pix[b, n] = pix
-        buf_p[b, n] = p
-        buf_axis[b, n] = axis
-    count[b] = min(n + 1, cap + 1)
+@njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
+def _dvs_scan(v_row, ref, v_prev, leak, th_on, th_off, dt, d0, slope, d_end, busy):
+    """Branch-free (vectorised) pass over a run of pixels (all arguments sliced to it) for
+    one step: the distance d0 = signal - level at the step start, its slope over the step,
+    the distance at the step end if no event fires, and whether the pixel may fire (its
+    distance reaches a threshold within 1e-9 relative: a superset of the pixels that do).
+    Returns how many may. (Slices rather than offsets: LLVM vectorises this 4x better.)"""
+    m = 0
+    for i in range(v_row.shape[0]):
+        v0 = v_prev[i]
+        k = (np.float64(v_row[i]) - v0) + leak[i] * dt
+        d = v0 - ref[i]
+        e = d + k * 1.0
+        on = th_on[i]
+        off = th_off[i]
+        tol = 1e-9 * (abs(d) + abs(k) + on + off)
+        f = (d >= on - tol) | (d <= tol - off) | (e >= on - tol) | (e <= tol - off)
+        d0[i] = d
+        slope[i] = k
+        d_end[i] = e
+        busy[i] = f
+        m += f
+    return m
 
 
-@njit(parallel=True, cache=True)
-def brightness(v, t_start, t_end, ref, v_prev, last_t, th_on, th_off, leak, refractory,
-               buf_t, buf_step, buf_pix, buf_p, buf_axis, count):
+@njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
+def _dvs_commit(v_row, ref, v_prev, d_end):
+    """New levels of a run of pixels (arguments sliced to it) from their distances at the step end."""
+    for i in range(v_row.shape[0]):
+        v1 = np.float64(v_row[i])
+        ref[i] = v1 - d_end[i]
+        v_prev[i] = v1
+
+
+@njit(parallel=True, nogil=True, cache=True)
+def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, leak, refractory, px_x, px_y,
+               buf_t, buf_x, buf_y, buf_p, region, order):
     """DVS: per pixel a memorised level ``ref``; an ON (OFF) event when the signal
     rises (falls) by th_on (th_off) from it, at the linearly interpolated crossing
     time, not sooner than ``refractory`` after the pixel's previous event; the
     level is then reset to the signal. ``leak`` (ln/s) lowers the level over
-    time, producing leak (ON) events."""
+    time, producing leak (ON) events.
+
+    Per block and step, a vectorised scan finds the pixels that may fire; the exact
+    crossing loop runs for those only, in pixel order. Block b (pixels b * BLOCK ...)
+    writes its events into its own region of the flat buffers from its resume point (see
+    :data:`START`); a pixel whose events of a step do not fit is left untouched (as are
+    the pixels after it) and becomes the block's resume point."""
     T, P = v.shape
-    cap = buf_t.shape[1]
-    nblocks = (P + BLOCK - 1) // BLOCK
-    for b in prange(nblocks):
-        lo = b * BLOCK
-        hi = min(P, lo + BLOCK)
-        for t in range(T):
-            ta = t_start[t]
-            dt = t_end[t] - ta
-            for p in range(lo, hi):
-                v0 = v_prev[p]
-                v1 = np.float64(v[t, p])
-                k = (v1 - v0) + leak[p] * dt  # slope of d = signal - level over the step (per unit s)
-                d = v0 - ref[p]
-                s = 0.0
-                n = 0
-                while n < MAX_EVENTS_PER_STEP:
-                    on, off = th_on[p], th_off[p]
-                    if d >= on:
-                        cross, pol = s, 1
-                    elif d <= -off:
-                        cross, pol = s, -1
-                    elif k > 0.0:
-                        cross, pol = s + (on - d) / k, 1
-                    elif k < 0.0:
-                        cross, pol = s + (-off - d) / k, -1
-                    else:
-                        break
-                    if cross > 1.0:
-                        break
-                    se = cross
-                    if refractory > 0.0:
-                        ready = (last_t[p] + refractory - ta) / dt
-                        if ready > se:
-                            # Refractory: fire when it ends, if still beyond the threshold.
-                            se = ready
-                            if se > 1.0:
+    for j in prange(order.shape[0]):
+        b = order[j]
+        t0 = region[b, RESUME_T]
+        if t0 < T:
+            lo = b * BLOCK
+            hi = min(P, lo + BLOCK)
+            base = region[b, START]
+            cap = region[b, CAP]
+            n = region[b, FILL]
+            d0 = np.empty(BLOCK)
+            slope = np.empty(BLOCK)
+            d_end = np.empty(BLOCK)
+            busy = np.empty(BLOCK, np.bool_)
+            stopped = False
+            for t in range(t0, T):
+                ta = t_start[t]
+                dt = t_end[t] - ta
+                first = lo + region[b, RESUME_I] if t == t0 else lo
+                end = hi
+                if _dvs_scan(v[t, first:hi], ref[first:hi], v_prev[first:hi], leak[first:hi], th_on[first:hi],
+                             th_off[first:hi], dt, d0, slope, d_end, busy):
+                    for i in range(hi - first):
+                        if not busy[i]:
+                            continue
+                        p = first + i
+                        n_pixel = n
+                        lt = last_t[p]
+                        k = slope[i]
+                        d = d0[i]
+                        s = 0.0
+                        m = 0
+                        while m < MAX_EVENTS_PER_STEP:
+                            on, off = th_on[p], th_off[p]
+                            if d >= on:
+                                cross, pol = s, 1
+                            elif d <= -off:
+                                cross, pol = s, -1
+                            elif k > 0.0:
+                                cross, pol = s + (on - d) / k, 1
+                            elif k < 0.0:
+                                cross, pol = s + (-off - d) / k, -1
+                            else:
                                 break
-                            de = d + k * (se - s)
-                            if (pol == 1 and de < on) or (pol == -1 and de > -off):
-                                # Fell back inside the thresholds while refractory: no event;
-                                # look on from the end of the refractory period.
-                                d = de
-                                s = se
-                                n += 1
-                                continue
-                    te = ta + se * dt
-                    _push(b, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
-                          np.int64(math.floor(te * 1e6 + 0.5)), t, p, pol, 0)
-                    last_t[p] = te
-                    d = 0.0
-                    s = se
-                    n += 1
-                d += k * (1.0 - s)
-                ref[p] = v1 - d
-                v_prev[p] = v1
-    return count
-
-
-@njit(inline="always")
-def _ternary(g, theta):
-    if g >= theta:
-        return 1
-    if g <= -theta:
-        return -1
-    return 0
-
-
-@njit(inline="always")
-def _ternary_hysteresis(g, theta, t_old, hysteresis):
-    """Ternary state with comparator hysteresis: a +-1 state holds until |G| drops
-    below theta - hysteresis (0 hysteresis: the paper's definition)."""
-    if t_old == 1 and g >= theta - hysteresis:
-        return 1
-    if t_old == -1 and g <= hysteresis - theta:
-        return -1
-    return _ternary(g, theta)
+                            if cross > 1.0:
+                                break
+                            se = cross
+                            if refractory > 0.0:
+                                ready = (lt + refractory - ta) / dt
+                                if ready > se:
+                                    # Refractory: fire when it ends, if still beyond the threshold.
+                                    se = ready
+                                    if se > 1.0:
+                                        break
+                                    de = d + k * (se - s)
+                                    if (pol == 1 and de < on) or (pol == -1 and de > -off):
+                                        # Fell back inside the thresholds while refractory: no event;
+                                        # look on from the end of the refractory period.
+                                        d = de
+                                        s = se
+                                        m += 1
+                                        continue
+                            te = ta + se * dt
+                            if n == cap:
+                                stopped = True
+                                break
+                            buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_end[t])
+                            buf_x[base + n] = px_x[p]
+                            buf_y[base + n] = px_y[p]
+                            buf_p[base + n] = pol > 0
+                            n += 1
+                            lt = te
+                            d = 0.0
+                            s = se
+                            m += 1
+                        if stopped:  # this pixel's step and the rest are redone on resumption
+                            n = n_pixel
+                            region[b, RESUME_T] = t
+                            region[b, RESUME_I] = p - lo
+                            end = p
+                            break
+                        d_end[i] = d + k * (1.0 - s)
+                        last_t[p] = lt
+                _dvs_commit(v[t, first:end], ref[first:end], v_prev[first:end], d_end)
+                if stopped:
+                    break
+                region[b, STEP_END0 + t] = n
+            region[b, FILL] = n
+            if not stopped:
+                region[b, RESUME_T] = T
 
 
 @njit(inline="always")
@@ -165,64 +219,88 @@ def _gradient_row(here, there, step_x, n, theta, g_prev, tern, hysteresis, rc, g
     return changed
 
 
-@njit(parallel=True, cache=True)
-def gradient(v, t_start, t_end, g_prev, tern, theta, hysteresis, rc, interpolate, table,
-             buf_t, buf_step, buf_pix, buf_p, buf_axis, count):
+@njit(parallel=True, nogil=True, cache=True)
+def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, interpolate, table,
+             buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
     """Gradient events (Lehtonen et al.): for each comparator (axis a, pixel y, x)
     G_X = v[y, x+1] - v[y, x], G_Y = v[y+1, x] - v[y, x] (with resolution
     compression ``rc`` the mean over the pair starting at even x resp. even y,
     one comparator per pair); ternary state T = sgn(G) if |G| >= theta else 0;
     an event ``table[T_prev + 1, T + 1]`` whenever T changes. g_prev, tern and
     theta are (2, H, W); v is (T, H, W). A vectorised pass finds the comparators
-    that change; events are then written for those only."""
+    that change; events are then written for those only.
+
+    Row y is block y: it writes into its own region of the flat buffers, from its resume
+    point (step, axis); a row of one axis whose events do not all fit is left untouched
+    and becomes the resume point."""
     T, H, W = v.shape
-    cap = buf_t.shape[1]
     empty = np.empty(0, v.dtype)
-    for y in prange(H):
-        g_new = np.empty(W)
-        t_new = np.empty(W, np.int8)
-        for t in range(T):
-            ta = t_start[t]
-            dt = t_end[t] - ta
-            for axis in range(2):
-                if axis == 0:
-                    step_x = 2 if rc else 1
-                    n = W // 2 if rc else W - 1
-                    if rc:
-                        changed = _gradient_row(v[t, y], empty, 2, n, theta[0, y], g_prev[0, y], tern[0, y],
-                                                hysteresis, True, g_new, t_new)
+    for j in prange(order.shape[0]):
+        y = order[j]
+        t0 = region[y, RESUME_T]
+        if t0 < T:
+            g_new = np.empty(W)
+            t_new = np.empty(W, np.int8)
+            base = region[y, START]
+            cap = region[y, CAP]
+            n = region[y, FILL]
+            stopped = False
+            for t in range(t0, T):
+                ta = t_start[t]
+                dt = t_end[t] - ta
+                for axis in range(region[y, RESUME_I] if t == t0 else 0, 2):
+                    if axis == 0:
+                        step_x = 2 if rc else 1
+                        m = W // 2 if rc else W - 1
+                        if rc:
+                            changed = _gradient_row(v[t, y], empty, 2, m, theta[0, y], g_prev[0, y], tern[0, y],
+                                                    hysteresis, True, g_new, t_new)
+                        else:
+                            changed = _gradient_row(v[t, y], empty, 1, m, theta[0, y], g_prev[0, y], tern[0, y],
+                                                    hysteresis, False, g_new, t_new)
                     else:
-                        changed = _gradient_row(v[t, y], empty, 1, n, theta[0, y], g_prev[0, y], tern[0, y],
-                                                hysteresis, False, g_new, t_new)
-                else:
-                    if y == H - 1 or (rc and y % 2 == 1):
-                        continue
-                    step_x = 1
-                    n = W
-                    if rc:
-                        # Mean of G_Y(y) and G_Y(y + 1) = (v[y + 2] - v[y]) / 2 (G_Y of the last row is 0).
-                        there = v[t, y + 2] if y + 2 < H else v[t, y + 1]
-                        changed = _gradient_row(v[t, y], there, 1, n, theta[1, y], g_prev[1, y], tern[1, y],
-                                                hysteresis, True, g_new, t_new)
-                    else:
-                        changed = _gradient_row(v[t, y], v[t, y + 1], 1, n, theta[1, y], g_prev[1, y],
-                                                tern[1, y], hysteresis, False, g_new, t_new)
-                if changed:
-                    for i in range(n):
-                        x = i * step_x
-                        old = tern[axis, y, x]
-                        new = t_new[i]
-                        if new != old:
-                            th = theta[axis, y, x]
-                            s = _crossing(g_prev[axis, y, x], g_new[i], old, new, th, hysteresis) \
-                                if interpolate else 1.0
-                            te = ta + s * dt
-                            _push(y, cap, count, buf_t, buf_step, buf_pix, buf_p, buf_axis,
-                                  np.int64(math.floor(te * 1e6 + 0.5)), t, y * W + x, table[old + 1, new + 1], axis)
-                            tern[axis, y, x] = new
-                for i in range(n):
-                    g_prev[axis, y, i * step_x] = g_new[i]
-    return count
+                        if y == H - 1 or (rc and y % 2 == 1):
+                            continue
+                        step_x = 1
+                        m = W
+                        if rc:
+                            # Mean of G_Y(y) and G_Y(y + 1) = (v[y + 2] - v[y]) / 2 (G_Y of the last row is 0).
+                            there = v[t, y + 2] if y + 2 < H else v[t, y + 1]
+                            changed = _gradient_row(v[t, y], there, 1, m, theta[1, y], g_prev[1, y], tern[1, y],
+                                                    hysteresis, True, g_new, t_new)
+                        else:
+                            changed = _gradient_row(v[t, y], v[t, y + 1], 1, m, theta[1, y], g_prev[1, y],
+                                                    tern[1, y], hysteresis, False, g_new, t_new)
+                    if n + changed > cap:  # nothing of this row and axis is written; resume here
+                        stopped = True
+                        region[y, RESUME_T] = t
+                        region[y, RESUME_I] = axis
+                        break
+                    if changed:
+                        for i in range(m):
+                            x = i * step_x
+                            old = tern[axis, y, x]
+                            new = t_new[i]
+                            if new != old:
+                                th = theta[axis, y, x]
+                                s = _crossing(g_prev[axis, y, x], g_new[i], old, new, th, hysteresis) \
+                                    if interpolate else 1.0
+                                te = ta + s * dt
+                                buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_end[t])
+                                buf_x[base + n] = x
+                                buf_y[base + n] = y
+                                buf_p[base + n] = table[old + 1, new + 1]
+                                buf_axis[base + n] = axis
+                                n += 1
+                                tern[axis, y, x] = new
+                    for i in range(m):
+                        g_prev[axis, y, i * step_x] = g_new[i]
+                if stopped:
+                    break
+                region[y, STEP_END0 + t] = n
+            region[y, FILL] = n
+            if not stopped:
+                region[y, RESUME_T] = T
 
 
 @njit(cache=True)
@@ -236,49 +314,3 @@ def apply_gradient_events(state, axis, y, x, p, table):
                 state[a, yy, xx] = col - 1
                 break
     return state
-
-
-MAX_SORT_KEYS = 1 << 26
-
-
-@njit(cache=True)
-def collect(buf_t, buf_step, buf_pix, buf_p, buf_axis, count, n_steps, width, x, y, t, p, axis):
-    """Gather the block buffers into time order: a stable counting sort on
-    (timestamp, step) over the blocks taken in order, so ties keep block and
-    emission order. Timestamps grow with the step, so this order does not depend
-    on how a sequence is cut into chunks. Writes x, y, t, p, axis (length sum(count))."""
-    nblocks = count.shape[0]
-    tmin = np.int64(0)
-    tmax = np.int64(0)
-    first = True
-    for b in range(nblocks):
-        for i in range(count[b]):
-            v = buf_t[b, i]
-            if first or v < tmin:
-                tmin = v
-            if first or v > tmax:
-                tmax = v
-            first = False
-    if first:
-        return True
-    nkeys = (tmax - tmin + 1) * n_steps
-    if nkeys > MAX_SORT_KEYS:
-        return False  # the caller sorts instead
-    hist = np.zeros(nkeys + 1, np.int64)
-    for b in range(nblocks):
-        for i in range(count[b]):
-            hist[(buf_t[b, i] - tmin) * n_steps + buf_step[b, i] + 1] += 1
-    for k in range(nkeys):
-        hist[k + 1] += hist[k]
-    for b in range(nblocks):
-        for i in range(count[b]):
-            key = (buf_t[b, i] - tmin) * n_steps + buf_step[b, i]
-            j = hist[key]
-            hist[key] = j + 1
-            pix = buf_pix[b, i]
-            x[j] = pix % width
-            y[j] = pix // width
-            t[j] = buf_t[b, i]
-            p[j] = buf_p[b, i]
-            axis[j] = buf_axis[b, i]
-    return True

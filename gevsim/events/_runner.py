@@ -1,17 +1,31 @@
-"""Shared driving of the event kernels: input checks, state, buffers, sorting.
+"""Shared driving of the event kernels: input checks, state, buffers, collection.
 
 Events of a chunk are ordered by (timestamp, step, block, the kernel's
 emission order): this order is the same whether a sequence is processed in
-one call or in chunks.
+one call or in chunks, and for any number of threads.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 import numpy as np
 
 from gevsim._validate import real_array
-from gevsim.events import _kernels
+from gevsim.events import _collect
+from gevsim.events._kernels import CAP, FILL, RESUME_T, START, STEP_END0
 from gevsim.timebase import check_chunk
+
+#: Bound on the events held in the kernels' buffers at once (13-14 bytes each): a chunk
+#: expected to emit more is emulated in parts of fewer steps (the events are the same).
+MAX_IN_FLIGHT = 1 << 23
+#: Room given to each block beyond the events expected from the previous chunk.
+SLACK = 1.25
+
+#: ``kernel(a, b, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order)`` runs steps [a, b) of the chunk,
+#: taking the blocks in ``order``.
+Kernel = Callable[..., object]
 
 
 class SampledSignal:
@@ -33,38 +47,75 @@ class SampledSignal:
         return v, prev, t, first
 
 
-def run_with_buffers(call, state: tuple, *, nblocks: int, n_steps: int, estimate: int, dtype, width: int):
-    """Run ``call(state, buf_t, buf_step, buf_pix, buf_p, buf_axis, count)`` on copies of
-    the ``state`` arrays (the kernel mutates them), growing the buffers until nothing
-    overflows; return (events sorted, new state)."""
-    cap = max(256, int(estimate))
-    while True:
-        args = tuple(a.copy() for a in state)
-        buf_t = np.empty((nblocks, cap), np.int64)
-        buf_step = np.empty((nblocks, cap), np.int32)
-        buf_pix = np.empty((nblocks, cap), np.int32)
-        buf_p = np.empty((nblocks, cap), np.int8)
-        buf_axis = np.empty((nblocks, cap), np.uint8)
-        count = np.zeros(nblocks, np.int64)
-        call(args, buf_t, buf_step, buf_pix, buf_p, buf_axis, count)
-        if count.max(initial=0) <= cap:
-            break
-        cap = int(count.max()) * 4
-    n = int(count.sum())
-    x, y = np.empty(n, np.int16), np.empty(n, np.int16)
-    t, p, axis = np.empty(n, np.int64), np.empty(n, np.int8), np.empty(n, np.uint8)
-    if not _kernels.collect(buf_t, buf_step, buf_pix, buf_p, buf_axis, count, n_steps, width, x, y, t, p, axis):
-        # Long chunk: the same order by a stable sort of the block-major buffers.
-        mask = np.arange(cap)[None, :] < count[:, None]
-        order = np.lexsort((buf_step[mask], buf_t[mask]))
-        pix = buf_pix[mask][order]
-        x[:], y[:], t[:] = pix % width, pix // width, buf_t[mask][order]
-        p[:], axis[:] = buf_p[mask][order], buf_axis[mask][order]
-    events = np.empty(n, dtype=dtype)
-    events["x"], events["y"], events["t"] = x, y, t
-    if "axis" in dtype.names:
-        events["p"] = p
-        events["axis"] = axis
-    else:
-        events["p"] = p > 0
-    return events, args
+def step_end_us(t_end_s: np.ndarray) -> np.ndarray:
+    """Step boundaries in whole microseconds (rounded as event timestamps are)."""
+    return np.floor(np.asarray(t_end_s, np.float64) * 1e6 + 0.5).astype(np.int64)
+
+
+class EventBlocks:
+    """Buffers of an emulator's event kernel, sized from the previous chunk.
+
+    Block b gets room for ``SLACK`` times its events per step in the previous chunk
+    (``first_per_step`` before any chunk) plus ``min_free``, the most one resumable
+    unit of work can emit (a pixel's step, a row of comparators). A block that runs out
+    stops before that unit; its region and the others' are moved into larger buffers
+    and the kernel goes on from where each block stopped (:attr:`regrowths` counts
+    this). Nothing is computed twice.
+    """
+
+    def __init__(self, nblocks: int, *, dtype: np.dtype, first_per_step: float, min_free: int,
+                 max_in_flight: int = MAX_IN_FLIGHT):
+        self.nblocks, self.dtype = int(nblocks), np.dtype(dtype)
+        self.rate = np.full(self.nblocks, float(first_per_step))  # events per step, per block
+        self.min_free, self.max_in_flight = int(min_free), int(max_in_flight)
+        self.gradient = "axis" in (self.dtype.names or ())
+        self.regrowths = 0
+
+    def collect(self, kernel: Kernel, t_start_s: np.ndarray, t_end_s: np.ndarray) -> np.ndarray:
+        """Run ``kernel`` over the steps [t_start_s, t_end_s] (in parts if many events are
+        expected); return the events in time order."""
+        n_steps = len(t_end_s)
+        us_lo, us_hi = step_end_us(t_start_s), step_end_us(t_end_s)
+        parts = max(1, math.ceil(float(self.rate.sum()) * n_steps / self.max_in_flight))
+        edges = np.unique(np.linspace(0, n_steps, min(parts, max(n_steps, 1)) + 1).round().astype(int))
+        out = [self._run(kernel, int(a), int(b), us_lo, us_hi) for a, b in zip(edges[:-1], edges[1:])]
+        if not out:
+            return np.zeros(0, self.dtype)
+        return out[0] if len(out) == 1 else np.concatenate(out)
+
+    def _buffers(self, n: int) -> tuple[np.ndarray, ...]:
+        return (np.empty(n, np.int64), np.empty(n, np.int16), np.empty(n, np.int16),
+                np.empty(n, np.int8 if self.gradient else np.bool_), np.empty(n if self.gradient else 0, np.uint8))
+
+    def _run(self, kernel: Kernel, a: int, b: int, us_lo: np.ndarray, us_hi: np.ndarray) -> np.ndarray:
+        steps = b - a
+        region = np.zeros((self.nblocks, STEP_END0 + steps), np.int64)
+        region[:, CAP] = np.ceil(self.rate * steps * SLACK).astype(np.int64) + self.min_free
+        region[:, START] = np.cumsum(region[:, CAP]) - region[:, CAP]
+        bufs = self._buffers(int(region[:, CAP].sum()))
+        order = _collect.interleaved(self.nblocks)
+        while True:
+            kernel(a, b, *bufs, region, order)
+            todo = region[:, RESUME_T] < steps
+            if not todo.any():
+                break
+            fill, cap = region[:, FILL], region[:, CAP]
+            done = np.maximum(region[todo, RESUME_T], 1)
+            new_cap = fill.copy()
+            new_cap[todo] = np.maximum.reduce([2 * cap[todo], fill[todo] + self.min_free,
+                                               np.ceil(fill[todo] * steps / done * SLACK).astype(np.int64)])
+            new_start = np.cumsum(new_cap) - new_cap
+            grown = self._buffers(int(new_cap.sum()))
+            _collect.move_regions(region, new_start, *bufs, *grown)
+            region[:, START], region[:, CAP] = new_start, new_cap
+            bufs = grown
+            self.regrowths += 1
+        ends = region[:, STEP_END0:]
+        per_step = np.diff(ends, axis=1, prepend=0).sum(axis=0)
+        self.rate = region[:, FILL] / max(steps, 1)
+        out_start = np.concatenate([[0], np.cumsum(per_step)]).astype(np.int64)
+        events = np.empty(int(out_start[-1]), self.dtype)
+        axis = events["axis"] if self.gradient else np.empty(0, np.uint8)
+        _collect.gather(*bufs, region, out_start, us_lo[a:b], us_hi[a:b],
+                        events["x"], events["y"], events["t"], events["p"], axis)
+        return events

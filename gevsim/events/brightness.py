@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gevsim.events import _kernels
-from gevsim.events._runner import SampledSignal, run_with_buffers
+from gevsim.events._runner import EventBlocks, SampledSignal, step_end_us
 from gevsim.events.types import BRIGHTNESS_DTYPE, empty
 from gevsim.pixel.params import EventParams
 
@@ -58,6 +58,9 @@ class BrightnessEmulator:
         self.ref = np.zeros(n)
         self.v_prev = np.zeros(n)
         self.last_t = np.full(n, -np.inf)
+        self._px_y, self._px_x = (a.ravel().astype(np.int16) for a in np.indices(self.shape))
+        self.blocks = EventBlocks((n + _kernels.BLOCK - 1) // _kernels.BLOCK, dtype=self.dtype,
+                                  first_per_step=_kernels.BLOCK / 8, min_free=_kernels.MAX_EVENTS_PER_STEP)
 
     def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Events (sorted by time) from samples ``signal`` (T, H, W) in ln units at times ``t_s`` (T,).
@@ -68,23 +71,21 @@ class BrightnessEmulator:
         v, t_start, t_end, first = self.clock.steps(signal, t_s, name="signal")
         if len(t_end) == 0:
             return empty(self.dtype)
-        ref, v_prev, last_t = self.ref, self.v_prev, self.last_t
+        ref, v_prev, last_t = self.ref.copy(), self.v_prev.copy(), self.last_t.copy()
         if first:
             ref = v[0].reshape(-1).astype(np.float64)
             v_prev = ref.copy()
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
         flat = v.reshape(len(t_end), self.shape[0] * self.shape[1])
+        us_end = step_end_us(t_end)
         p = self.params
 
-        def call(state, *bufs):
-            _kernels.brightness(flat, t_start, t_end, *state, self.threshold_on_ln, self.threshold_off_ln,
-                                self.leak_ln_per_s, p.refractory_s, *bufs)
+        def kernel(a, b, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
+            _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end[a:b], ref, v_prev, last_t,
+                                self.threshold_on_ln, self.threshold_off_ln, self.leak_ln_per_s, p.refractory_s,
+                                self._px_x, self._px_y, buf_t, buf_x, buf_y, buf_p, region, order)
 
-        nblocks = (flat.shape[1] + _kernels.BLOCK - 1) // _kernels.BLOCK
-        events, (ref, v_prev, last_t) = run_with_buffers(
-            call, (ref, v_prev, last_t), nblocks=nblocks, n_steps=len(t_end),
-            estimate=max(1, len(t_end)) * _kernels.BLOCK // 8,
-            dtype=self.dtype, width=self.shape[1])
+        events = self.blocks.collect(kernel, t_start, t_end)
         self.ref, self.v_prev, self.last_t = ref, v_prev, last_t
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
         return events

@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 from gevsim._validate import real, real_list
 from gevsim.events import _kernels
 from gevsim.events._kernels import EVENT_TABLE
-from gevsim.events._runner import SampledSignal, run_with_buffers
+from gevsim.events._runner import EventBlocks, SampledSignal, step_end_us
 from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, empty
 
 PAPER_THRESHOLDS = (4 / 255, 8 / 255, 16 / 255)
@@ -133,6 +133,8 @@ class GradientEmulator:
         self.hysteresis = real(hysteresis_ln, "hysteresis_ln", low=0.0, high=float(base.min()), high_open=True)
         self.g_prev = np.zeros((2,) + self.shape)
         self.state = np.zeros((2,) + self.shape, np.int8)
+        self.blocks = EventBlocks(self.shape[0], dtype=self.dtype,
+                                  first_per_step=self.shape[1] / 4, min_free=self.shape[1])
 
     def ternary_of(self, image: np.ndarray) -> np.ndarray:
         """Ternary gradients (2, H, W) of one image with this emulator's thresholds."""
@@ -152,22 +154,20 @@ class GradientEmulator:
         v, t_start, t_end, first = self.clock.steps(signal, t_s, name="signal")
         if len(t_end) == 0:
             return empty(self.dtype)
-        g_prev, state = self.g_prev, self.state
+        g_prev, state = self.g_prev.copy(), self.state.copy()
         if first:
             gx, gy = gradients(v[0], rc=self.rc)
             g_prev = np.stack([gx, gy])
             state = self.ternary_of(v[0])
             self.initial_state = state.copy()
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
+        us_end = step_end_us(t_end)
 
-        def call(st, *bufs):
-            _kernels.gradient(v, t_start, t_end, *st, self.theta, self.hysteresis, self.rc, self.interpolate,
-                              EVENT_TABLE, *bufs)
+        def kernel(a, b, *bufs_and_region):
+            _kernels.gradient(v[a:b], t_start[a:b], t_end[a:b], us_end[a:b], g_prev, state, self.theta,
+                              self.hysteresis, self.rc, self.interpolate, EVENT_TABLE, *bufs_and_region)
 
-        events, (g_prev, state) = run_with_buffers(
-            call, (g_prev, state), nblocks=self.shape[0], n_steps=len(t_end),
-            estimate=max(1, len(t_end)) * self.shape[1] // 4,
-            dtype=self.dtype, width=self.shape[1])
+        events = self.blocks.collect(kernel, t_start, t_end)
         self.g_prev, self.state = g_prev, state
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
         return events
