@@ -60,6 +60,17 @@ def _dvs_scan(v_row, ref, v_prev, leak, th_on, th_off, dt, d0, slope, d_end, bus
     return m
 
 
+@njit(inline="always")
+def _compact(busy, n, idx):
+    """Indices of the set flags among busy[:n], branch-free (no mispredicted jumps over
+    the pixels that stay quiet)."""
+    m = 0
+    for i in range(n):
+        idx[m] = i
+        m += busy[i]
+    return m
+
+
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
 def _dvs_commit(v_row, ref, v_prev, d_end):
     """New levels of a run of pixels (arguments sliced to it) from their distances at the step end."""
@@ -97,6 +108,7 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, le
             slope = np.empty(BLOCK)
             d_end = np.empty(BLOCK)
             busy = np.empty(BLOCK, np.bool_)
+            idx = np.empty(BLOCK, np.int64)
             stopped = False
             for t in range(t0, T):
                 ta = t_start[t]
@@ -105,9 +117,8 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, le
                 end = hi
                 if _dvs_scan(v[t, first:hi], ref[first:hi], v_prev[first:hi], leak[first:hi], th_on[first:hi],
                              th_off[first:hi], dt, d0, slope, d_end, busy):
-                    for i in range(hi - first):
-                        if not busy[i]:
-                            continue
+                    for q in range(_compact(busy, hi - first, idx)):
+                        i = idx[q]
                         p = first + i
                         n_pixel = n
                         lt = last_t[p]
