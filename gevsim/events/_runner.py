@@ -8,6 +8,7 @@ one call or in chunks, and for any number of threads.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -69,7 +70,13 @@ class EventBlocks:
         self.rate = np.full(self.nblocks, float(first_per_step))  # events per step, per block
         self.min_free, self.max_in_flight = int(min_free), int(max_in_flight)
         self.gradient = "axis" in (self.dtype.names or ())
+        #: Counters for benchmarks: regions grown mid-chunk, events, seconds in the kernel and in
+        #: collection (gather), the largest buffers held (bytes).
         self.regrowths = 0
+        self.events = 0
+        self.kernel_s = 0.0
+        self.collect_s = 0.0
+        self.peak_buffer_bytes = 0
 
     def collect(self, kernel: Kernel, t_start_s: np.ndarray, t_end_s: np.ndarray) -> np.ndarray:
         """Run ``kernel`` over the steps [t_start_s, t_end_s] (in parts if many events are
@@ -94,6 +101,7 @@ class EventBlocks:
         region[:, START] = np.cumsum(region[:, CAP]) - region[:, CAP]
         bufs = self._buffers(int(region[:, CAP].sum()))
         order = _collect.interleaved(self.nblocks)
+        tick = time.perf_counter()
         while True:
             kernel(a, b, *bufs, region, order)
             todo = region[:, RESUME_T] < steps
@@ -110,6 +118,9 @@ class EventBlocks:
             region[:, START], region[:, CAP] = new_start, new_cap
             bufs = grown
             self.regrowths += 1
+        tock = time.perf_counter()
+        self.kernel_s += tock - tick
+        self.peak_buffer_bytes = max(self.peak_buffer_bytes, sum(buf.nbytes for buf in bufs) + region.nbytes)
         ends = region[:, STEP_END0:]
         per_step = np.diff(ends, axis=1, prepend=0).sum(axis=0)
         self.rate = region[:, FILL] / max(steps, 1)
@@ -118,4 +129,6 @@ class EventBlocks:
         axis = events["axis"] if self.gradient else np.empty(0, np.uint8)
         _collect.gather(*bufs, region, out_start, us_lo[a:b], us_hi[a:b],
                         events["x"], events["y"], events["t"], events["p"], axis)
+        self.collect_s += time.perf_counter() - tock
+        self.events += len(events)
         return events
