@@ -77,6 +77,7 @@ class EventBlocks:
         self.kernel_s = 0.0
         self.collect_s = 0.0
         self.peak_buffer_bytes = 0
+        self._cache: tuple[np.ndarray, ...] = (np.empty(0, np.int64),)
 
     def collect(self, kernel: Kernel, t_start_s: np.ndarray, t_end_s: np.ndarray) -> np.ndarray:
         """Run ``kernel`` over the steps [t_start_s, t_end_s] (in parts if many events are
@@ -90,9 +91,17 @@ class EventBlocks:
             return np.zeros(0, self.dtype)
         return out[0] if len(out) == 1 else np.concatenate(out)
 
-    def _buffers(self, n: int) -> tuple[np.ndarray, ...]:
-        return (np.empty(n, np.int64), np.empty(n, np.int16), np.empty(n, np.int16),
-                np.empty(n, np.int8 if self.gradient else np.bool_), np.empty(n if self.gradient else 0, np.uint8))
+    def _buffers(self, n: int, *, keep: tuple[np.ndarray, ...] = ()) -> tuple[np.ndarray, ...]:
+        """Flat buffers for ``n`` events: the kept ones of earlier chunks where they are large
+        enough (pages already mapped; none of ``keep``, which still holds events), else new."""
+        cached = self._cache
+        if len(cached[0]) < n or any(a is b for a, b in zip(cached, keep)):
+            p_type = np.int8 if self.gradient else np.bool_
+            cached = (np.empty(n, np.int64), np.empty(n, np.int16), np.empty(n, np.int16), np.empty(n, p_type),
+                      np.empty(n if self.gradient else 0, np.uint8))
+            if not keep:
+                self._cache = cached
+        return cached
 
     def _run(self, kernel: Kernel, a: int, b: int, us_lo: np.ndarray, us_hi: np.ndarray) -> np.ndarray:
         steps = b - a
@@ -113,8 +122,9 @@ class EventBlocks:
             new_cap[todo] = np.maximum.reduce([2 * cap[todo], fill[todo] + self.min_free,
                                                np.ceil(fill[todo] * steps / done * SLACK).astype(np.int64)])
             new_start = np.cumsum(new_cap) - new_cap
-            grown = self._buffers(int(new_cap.sum()))
+            grown = self._buffers(int(new_cap.sum()), keep=bufs)
             _collect.move_regions(region, new_start, *bufs, *grown)
+            self._cache = grown
             region[:, START], region[:, CAP] = new_start, new_cap
             bufs = grown
             self.regrowths += 1
