@@ -137,7 +137,8 @@ class EventBlocks:
         out_start = np.concatenate([[0], np.cumsum(per_step)]).astype(np.int64)
         events = np.empty(int(out_start[-1]), self.dtype)
         axis = events["axis"] if self.gradient else np.empty(0, np.uint8)
-        _collect.gather(*bufs, region, out_start, us_lo[a:b], us_hi[a:b],
+        buf_t, buf_x, buf_y, buf_p, buf_axis = bufs
+        _collect.gather(buf_t, buf_x, buf_y, buf_p, buf_axis, region, out_start, us_lo[a:b], us_hi[a:b],
                         events["x"], events["y"], events["t"], events["p"], axis)
         self.collect_s += time.perf_counter() - tock
         self.events += len(events)
