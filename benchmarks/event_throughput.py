@@ -298,12 +298,12 @@ def measure(inp: Input, h: int, w: int, steps: int, repeat: int, noisy: SensorPr
                        "events_per_px_step": n / px}
     comparisons = {}
     if v2e:
-        for row, g, v, _ in COMPARISONS:
+        for row, g, v, same in COMPARISONS:
             g = alias.get(g, g)
             ratios = [sv / sg for (sg, _), (sv, _) in zip(samples[g], samples[v])]
             ng, nv = sum(e for _, e in samples[g]), sum(e for _, e in samples[v])
             comparisons[row] = {"gevsim": g, "v2e": v, "ratio_px_steps": ratios,
-                                "count_ratio": ng / nv if nv else None}
+                                "count_ratio": ng / nv if nv else None, "counts_should_agree": same}
     out = {"input": inp.name, "width": w, "height": h, "steps": steps, "rows": rows, "comparisons": comparisons}
     if storage:
         out["storage"] = bytes_per_event(runners[0].last, h, w)
@@ -321,8 +321,9 @@ def print_result(res: dict) -> None:
     for row, c in res["comparisons"].items():
         lo, med, hi = spread(c["ratio_px_steps"])
         cr = "-" if c["count_ratio"] is None else f"{c['count_ratio']:.6f}"
+        note = "same input: should be 1" if c["counts_should_agree"] else "different models"
         print(f"  {name:14s} {row:47s} gevsim/v2e {lo:5.2f} / {med:5.2f} / {hi:5.2f} (min/median/max)  "
-              f"events gevsim/v2e {cr}", flush=True)
+              f"events gevsim/v2e {cr} ({note})", flush=True)
     for stream, st in res.get("storage", {}).items():
         print(f"  {name:14s} HDF5 {stream:20s} {st['bytes_per_event']:6.2f} bytes/event ({st['events']} events, "
               f"written at {st['write_events_per_s'] / 1e6:.1f} M events/s)", flush=True)

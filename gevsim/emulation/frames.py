@@ -29,6 +29,15 @@ The log intensity the DVS sees (:func:`log_intensity`) is one of
   output to 1e-8). Above the threshold both are exactly v2e's pure log; below it
   they differ.
 
+Measured on scikit-image photographs panning 1 px per frame (camera, astronaut,
+moon; 40 frames of 400x512, 8-bit): on pixels at or above 20 DN in every frame,
+``"offset"`` gives 1.7-2.1 % fewer DVS events than ``"linlog"`` (which equals a
+pure log there, and v2e to 0.3 %). Pixels that go darker behave differently: the
+offset's gain of 1/(DN + 1) per code makes steps between the darkest codes fire
+(0 -> 1 DN is ln 2, three events), the tangent's 1/20 per code mostly does not,
+so there ``"linlog"`` gives 20-55 % fewer events than ``"offset"`` and 41-45 %
+fewer than v2e's steeper line.
+
 The mode is recorded in the file (root attributes ``log_mode`` and
 ``linlog_threshold``, written only for ``"linlog"``: files of default runs are
 unchanged) and :func:`linear_intensity` inverts it for reconstruction.
