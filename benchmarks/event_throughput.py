@@ -14,6 +14,11 @@ the repository root (v2e's source checked out in /tmp/v2e_src)::
         [--cache /tmp/gevsim-bench-cache] [--office-spp 8] [--json OUT] [--quick]
 
 Without v2e (``import v2ecore`` fails) the v2e rows and ratios are left out and the run says so.
+On a machine shared with other work, add ``OMP_WAIT_POLICY=PASSIVE`` to the environment: torch and
+numba (its ``omp`` layer) spin in OpenMP barriers, and with a core taken by another process v2e at 2
+threads ran 25-50x slower (flicker_pan, 346x260: 6-23 s per 50-frame chunk instead of 0.27 s
+passive; 1 thread 0.22 s either way). The header prints the setting; each input prints the load
+average before and after it.
 ``--quick`` is a smoke run (64x48, 20 steps, 1 repeat, office at 2 spp).
 
 Inputs (each a photocurrent sequence, float32 (T, H, W), processed in chunks of ``--steps`` steps):
@@ -368,6 +373,7 @@ def main() -> None:
         logging.getLogger("v2ecore").setLevel(logging.ERROR)  # "no signal events" etc. on every quiet frame
     ideal, noisy = load_preset("davis346").ideal(), load_preset("davis346")
     print(f"{os.cpu_count()} cores, numba {numba.__version__} ({numba.config.THREADING_LAYER} layer requested), "
+          f"OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', '(unset)')}, "
           f"chunks of {steps} steps, median of {repeat} (after a warm-up chunk)")
     if v2e:
         print(f"v2e: EventEmulator from {Path(EventEmulator.__module__.replace('.', '/')).parent} "
@@ -385,14 +391,20 @@ def main() -> None:
                 torch.set_num_threads(threads)
             print(f"{w}x{h}, {threads} thread(s)", flush=True)
             for inp in cases:
+                before = os.getloadavg()[0]
                 res = measure(inp, h, w, steps, repeat, noisy, v2e=v2e, storage=j == 0)
-                res["threads"] = threads
+                res.update(threads=threads, load_before=before, load_after=os.getloadavg()[0])
                 print_result(res)
+                print(f"  {inp.name:14s} load average {before:.2f} before, {res['load_after']:.2f} after "
+                      f"({os.cpu_count()} cores; other work on the machine skews both sides)", flush=True)
                 results.append(res)
+    print(f"numba threading layer used: {numba.threading_layer()}")
     if v2e:
         summary(results)
     if args.json:
-        meta = {"cores": os.cpu_count(), "numba": numba.__version__, "steps": steps, "repeat": repeat,
+        meta = {"cores": os.cpu_count(), "numba": numba.__version__, "numba_threading_layer": numba.threading_layer(),
+                "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
+                "steps": steps, "repeat": repeat,
                 "office_spp": spp, "v2e": v2e, "v2e_noisy": V2E_NOISY, "dn_floor": DN_FLOOR,
                 "torch": torch.__version__ if v2e else None}
         Path(args.json).write_text(json.dumps({"meta": meta, "results": results}, indent=1))
