@@ -175,6 +175,9 @@ def cmd_emulate(args: argparse.Namespace) -> int:
         raise ConfigError(f"{args.out} is a folder; name an .h5 file", key="--out")
     if args.config is None:
         return _emulate_frames(args)
+    if args.log is not None:
+        raise ConfigError("--log sets how frame mode takes the log of frames; a scene's pixel model has its own",
+                          key="--log")
     from gevsim.emulation import load_config, run
     from gevsim.emulation import summary as summary_mod
 
@@ -227,7 +230,8 @@ def _emulate_frames(args: argparse.Namespace) -> int:
         raise ConfigError("--seed draws the DVS threshold mismatch: give --threshold-mismatch LN as well",
                           key="--seed")
     summary = run_frames(frames, t_s, args.out, seed=args.seed or 0, source=source,
-                         emulators=names or FRAME_EMULATORS, threshold_mismatch_ln=args.threshold_mismatch or 0.0)
+                         emulators=names or FRAME_EMULATORS, threshold_mismatch_ln=args.threshold_mismatch or 0.0,
+                         log_mode=args.log or "offset")
     print(f"{'stream':22s} {'events':>10s} {'events/s':>12s}")
     for name, count in summary["counts"].items():
         print(f"{name:22s} {count:10d} {count / summary['duration_s']:12.4g}")
@@ -457,6 +461,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=_non_negative_int, help="frame mode: seed of the DVS threshold mismatch")
     e.add_argument("--threshold-mismatch", type=_non_negative, metavar="LN", dest="threshold_mismatch",
                    help="frame mode: sigma of the DVS threshold mismatch (ln units; default 0)")
+    e.add_argument("--log", choices=("offset", "linlog"),
+                   help="frame mode: the DVS sees ln(f + 1/255) (offset, default) or ln(f) above 20/255 and "
+                        "its tangent below (linlog, as v2e's lin-log)")
     _run_overrides(e)
     e.add_argument("--no-flicker", action="store_true", help="replace every lamp waveform by its mean")
     e.add_argument("--no-noise", action="store_true", help="ideal pixel: no noise, no mismatch, no leak")

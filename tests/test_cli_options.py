@@ -80,6 +80,22 @@ def test_frame_mode_emulators_run_odd_frames_and_the_seed_draws_the_mismatch(odd
     assert "even height and width" in capsys.readouterr().err
 
 
+def test_frame_mode_log_linlog_is_recorded_and_config_mode_refuses_it(odd_frames, tmp_path, capsys):
+    counts = {}
+    for mode in ("offset", "linlog"):
+        out = tmp_path / f"{mode}.h5"
+        assert cli.main(["emulate", "--frames", str(odd_frames), "--fps", "100", "--out", str(out),
+                         "--emulators", "dvs", "--log", mode]) == 0
+        with EventReader(out) as r:
+            assert r.attrs.get("log_mode", "offset") == mode
+            counts[mode] = len(r.read("events"))
+    assert counts["linlog"] > counts["offset"]  # the offset compresses every change by DN / (DN + 1)
+    config = tmp_path / "c.toml"
+    config.write_text('[emulation]\nscene = "office"\n')
+    assert cli.main(["emulate", str(config), "--out", str(tmp_path / "x.h5"), "--log", "linlog"]) == 2
+    assert "--log" in capsys.readouterr().err
+
+
 def test_reconstruct_refuses_an_empty_method_list(capsys):
     assert cli.main(["reconstruct", "x.h5", "--method", ",", "--out", "o"]) == 2
     assert "no method" in capsys.readouterr().err

@@ -49,7 +49,8 @@ class Emulator:
     decodes : its events are decoded from stored thresholds and an initial state (gradient codes).
     build_frames : ``build_frames(shape, *, thresholds, dvs_params, rng)``: the emulator of frame
         mode, or None where it does not run on frames.
-    log_input : frame mode feeds it ``ln(frame + log_eps)`` (else the linear frames).
+    log_input : frame mode feeds it the log of the frames (:func:`~gevsim.emulation.frames.log_intensity`;
+        else the linear frames).
     thresholds : ``thresholds(emulator, preset)``: what the emulation file stores under
         ``/thresholds/<name>`` for reconstruction, or None for nothing.
     """

@@ -21,6 +21,7 @@ import numpy as np
 
 from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS
+from gevsim.emulation.frames import file_log_mode, linear_intensity
 from gevsim.errors import ConfigError, suggest
 from gevsim.events import decode
 from gevsim.io import EventReader
@@ -111,8 +112,8 @@ def _brightness(make: Callable[..., brightness.EventFilter]) -> Callable[..., np
             for a, b in windows:
                 filt.feed(r.read(stream, a, b), until_us=b - 1)
             filt.estimate(int(t_us[k]), frames[k])
-        if not is_log:  # frame mode compares intensities
-            frames = np.exp(frames) - 1.0 / 255
+        if not is_log:  # frame mode compares intensities: undo the log its DVS saw
+            frames = linear_intensity(frames, **file_log_mode(r.attrs))
         return frames
     return run
 
