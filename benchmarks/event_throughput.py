@@ -52,6 +52,8 @@ warm-up chunk; pixel-steps/s = T H W / seconds; events/s = events of the stage /
     with ``EventParams()`` (0.2 / 0.2, no mismatch, no refractory period) takes them as its
     voltages. Computing L is outside both timings. The event counts must agree (count ratio ~1).
   * ``CSDVS vs v2e noise-free DVS``: gevsim's ``CenterSurroundEmulator`` on the same L.
+  * ``CSDVS vs v2e CSDVS``: the same against v2e's own centre-surround DVS on L (``V2E_CSDVS``:
+    2 px, surround time constant 1 ms, as gevsim's defaults).
   * ``pixel + noise + DVS vs v2e noisy``: gevsim's davis346 photoreceptor (shot, read, dark
     noise, mismatch, leak) + DVS on the photocurrent vs v2e on the linear frames DN with
     ``cutoff_hz=300``, ``shot_noise_rate_hz=5``, ``leak_rate_hz=0.1``, ``sigma_thres=0.03``
@@ -100,9 +102,13 @@ except ImportError as exc:
 MIN_STORED = 10_000  # events of a stream below which bytes per event are not reported
 DN_FLOOR = 0.1  # DN: the log frames of the noise-free comparison are ln(max(DN, DN_FLOOR))
 V2E_NOISY = {"sigma_thres": 0.03, "cutoff_hz": 300.0, "leak_rate_hz": 0.1, "shot_noise_rate_hz": 5.0}
+#: v2e's centre-surround DVS with gevsim's defaults: space constant 2 px, surround time constant
+#: tau_h = cs_tau_p_ms / lambda^2 = 1 ms (v2e steps its diffuser with Euler steps of tau / 5).
+V2E_CSDVS = {"cs_lambda_pixels": 2.0, "cs_tau_p_ms": 4.0}
 COMPARISONS = (  # (row, gevsim label, v2e label, counts should agree)
     ("DVS noise-free vs v2e noise-free", "DVS on ln frames", "v2e noise-free", True),
     ("CSDVS vs v2e noise-free DVS", "CSDVS on ln frames", "v2e noise-free", False),
+    ("CSDVS vs v2e CSDVS", "CSDVS on ln frames", "v2e CSDVS", False),
     ("pixel + noise + DVS vs v2e noisy", "davis346 pixel + DVS", "v2e noisy", False),
     ("pixel + noise + DVS + gradient vs v2e noisy DVS", "davis346 pixel + DVS + gradient", "v2e noisy", False),
 )
@@ -227,14 +233,16 @@ class GevsimLog:
 class V2e:
     """v2e's EventEmulator, one frame per step: noise-free on the log frames, or noisy on DN."""
 
-    def __init__(self, *, noisy: bool, seed: int):
+    def __init__(self, *, noisy: bool, seed: int, csdvs: bool = False):
         assert torch is not None and EventEmulator is not None
         torch.manual_seed(seed)
         kw = (dict(V2E_NOISY) if noisy else
               {"sigma_thres": 0.0, "cutoff_hz": 0.0, "leak_rate_hz": 0.0, "shot_noise_rate_hz": 0.0, "hdr": True})
+        if csdvs:
+            kw.update(V2E_CSDVS)
         self.em = EventEmulator(pos_thres=0.2, neg_thres=0.2, device="cpu", output_folder=None, seed=seed, **kw)
         self.noisy = noisy
-        self.label = "v2e noisy" if noisy else "v2e noise-free"
+        self.label = "v2e CSDVS" if csdvs else "v2e noisy" if noisy else "v2e noise-free"
 
     def run(self, c: Chunk) -> dict[str, tuple[float, int]]:
         frames = c.dn if self.noisy else c.ln
@@ -278,6 +286,7 @@ def measure(inp: Input, h: int, w: int, steps: int, repeat: int, noisy: SensorPr
     runners.append(GevsimLog(shape, seed=1))
     if v2e:
         runners.append(V2e(noisy=True, seed=0))
+        runners.append(V2e(noisy=False, seed=0, csdvs=True))
     if inp.preset is not noisy:  # the davis346 path of the comparison; else the stage runner gives it
         runners.append(GevsimStages(shape, noisy, seed=2, prefix="davis346 ", csdvs=False))
     white = None
