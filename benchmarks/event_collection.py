@@ -3,8 +3,8 @@ event, regrowths, for the DVS and gradient kernels on event-heavy inputs, 1 and 
 
 Usage: python benchmarks/event_collection.py [--sizes 346x260,1280x720] [--threads 1,2] [--chunks 6]
 
-Inputs are the flickering pan and the noisy low-light scene of ``event_throughput.py`` (its
-``inputs``), fed to the photoreceptor once; the emulators then run chunk after chunk on those
+Inputs are the flickering pan, the noisy low-light scene and the PWM-lit office of
+``event_throughput.py`` (its ``inputs``), fed to the photoreceptor once; the emulators then run chunk after chunk on those
 voltages. "collected M ev/s" is events / seconds spent gathering the kernels' regions into the
 time-ordered output (``EventBlocks.collect_s``): the collection rate issue 13 asks to be at least
 50 M events/s per core. "buffer B/ev" is the largest buffers held (allocated, ``peak_buffer_bytes``)
@@ -60,19 +60,20 @@ def main() -> None:
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--steps", type=int, default=50)
     ap.add_argument("--chunks", type=int, default=6)
-    ap.add_argument("--inputs", default="flicker_pan,noisy_lowlight")
+    ap.add_argument("--inputs", default="flicker_pan,noisy_lowlight,office")
+    ap.add_argument("--cache", default="/tmp/gevsim-bench-cache", help="render cache of the office scene")
     args = ap.parse_args()
     ideal, noisy = load_preset("davis346").ideal(), load_preset("davis346")
     print(f"{os.cpu_count()} cores, numba {numba.__version__}, chunks of {args.steps} steps, {args.chunks} chunks")
     for size in args.sizes.split(","):
         w, h = (int(x) for x in size.split("x"))
-        cases = inputs(h, w, args.steps, ideal, noisy)
+        cases = inputs(args.inputs.split(","), h, w, args.steps, ideal, noisy, chunks=args.chunks + 1,
+                       cache=args.cache, office_spp=8)
         for threads in (int(x) for x in args.threads.split(",")):
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             print(f"{w}x{h}, {threads} thread(s)")
-            for name in args.inputs.split(","):
-                preset, chunk = cases[name]
-                measure(name, h, w, args.steps, args.chunks, preset, chunk)
+            for inp in cases:
+                measure(inp.name, h, w, args.steps, args.chunks, inp.preset, inp.chunk)
 
 
 if __name__ == "__main__":

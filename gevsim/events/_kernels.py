@@ -126,16 +126,19 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, le
                         d = d0[i]
                         s = 0.0
                         m = 0
+                        on, off = th_on[p], th_off[p]
+                        # The distance from a reset level (d = 0) to the next threshold, in steps:
+                        # (on - 0.0) / k, computed once, off the dependency chain of the crossings.
+                        after_reset = on / k if k > 0.0 else (-off / k if k < 0.0 else 0.0)
                         while m < MAX_EVENTS_PER_STEP:
-                            on, off = th_on[p], th_off[p]
                             if d >= on:
                                 cross, pol = s, 1
                             elif d <= -off:
                                 cross, pol = s, -1
                             elif k > 0.0:
-                                cross, pol = s + (on - d) / k, 1
+                                cross, pol = s + (after_reset if d == 0.0 else (on - d) / k), 1
                             elif k < 0.0:
-                                cross, pol = s + (-off - d) / k, -1
+                                cross, pol = s + (after_reset if d == 0.0 else (-off - d) / k), -1
                             else:
                                 break
                             if cross > 1.0:
