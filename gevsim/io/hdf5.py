@@ -202,13 +202,15 @@ class _Worker:
     def _run(self) -> None:
         while True:
             job = self._queue.get()
-            if job is None:
-                return
-            if self.error is None and not self._stop:
-                try:
+            try:
+                if job is None:
+                    return
+                if self.error is None and not self._stop:
                     job()
-                except BaseException as exc:  # raised again in the caller's thread
-                    self.error = exc
+            except BaseException as exc:  # raised again in the caller's thread
+                self.error = exc
+            finally:
+                self._queue.task_done()
 
     def check(self) -> None:
         if self.error is not None:
@@ -217,6 +219,11 @@ class _Worker:
     def submit(self, job: Callable[[], object]) -> None:
         self.check()
         self._queue.put(job)
+
+    def wait(self) -> None:
+        """Block until the queued jobs are done; raise the first failure."""
+        self._queue.join()
+        self.check()
 
     def join(self, *, cancel: bool = False) -> None:
         """Run the queued jobs (drop them with ``cancel``) and end the thread."""
@@ -262,7 +269,6 @@ class EventWriter:
         self.compression = compression
         self._filters = {"compression": compression, "compression_opts": int(gzip_level) if compression == "gzip"
                          else None}
-        self._file: h5py.File | None = None
         self._worker: _Worker | None = None
         self._background = bool(background)
         self._stage = Staged(self.path, suffix=".tmp")
@@ -355,6 +361,14 @@ class EventWriter:
         state = _Stream(self._file.create_group(stream), dtype, self._filters)
         self._streams[stream] = state
         return state
+
+    def wait(self) -> None:
+        """Block until the events appended so far are compressed and written (but the last partial
+        HDF5 chunk of each stream, which waits for more events or :meth:`close`); raises a failure of
+        the writer thread. Returns at once without one (``background=False``)."""
+        self._check_open()
+        if self._worker is not None:
+            self._worker.wait()
 
     def set_end(self, t_end_us: int) -> None:
         """Set the recording's end time; every ``ms_to_idx`` then covers [0, t_end_us]."""
@@ -460,8 +474,9 @@ class EventWriter:
     def abort(self) -> None:
         """Stop the writer thread (dropping what it has not written), close and delete the temporary
         file; ``path`` is left untouched."""
-        if getattr(self, "_worker", None) is not None:
-            self._worker.join(cancel=True)
+        worker = getattr(self, "_worker", None)
+        if worker is not None:
+            worker.join(cancel=True)
         with contextlib.suppress(Exception):
             if getattr(self, "_file", None) is not None and self._file.id.valid:
                 self._file.close()
