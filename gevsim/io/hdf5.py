@@ -124,8 +124,10 @@ class _Stream:
         for name in dtype.names or ():
             boolean = dtype[name] == np.bool_
             disk = np.dtype(np.uint8 if boolean else dtype[name])
+            # Whole chunks are written at once: no chunk cache (1 byte holds none), so HDF5 compresses
+            # them in the write call, in the writer thread, not later when the file is closed.
             ds = group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=disk, chunks=(CHUNK,),
-                                      **_filters(filters, disk))
+                                      rdcc_nbytes=1, **_filters(filters, disk))
             if boolean:
                 ds.attrs[BOOL_ATTR] = "bool"
             _describe(ds, *_field_attrs(name, dtype[name], stream))
