@@ -23,24 +23,26 @@ polarity, no root ``ms_to_idx``) are still read. The file is written under a tem
 target and renamed onto it only by a clean :meth:`EventWriter.close`, so a file
 at the target path always carries ``complete = True``.
 
-Storage. The event columns keep their in-memory dtypes, which are already the smallest exact ones
-for the sensors gevsim models (x, y int16; t int64; p, axis one byte each). They are stored in chunks of
+Storage. The event columns keep their in-memory dtypes, which are already the smallest exact ones for
+the sensors gevsim models (x, y int16; t int64; p, axis one byte each). They are stored in chunks of
 :data:`CHUNK` events, byte-shuffled (HDF5's built-in ``shuffle`` filter) and deflated (``gzip``, level
-:data:`GZIP_LEVEL` by default) or ``lzf``: filters that h5py reads without plugins. DSEC's own files
-store t as uint32 relative to ``t_offset`` and x, y as uint16 (their writer, e.g. uzh-rpg/dagr
-``scripts/downsample_events.py``: ``u2, u2, u1, u4`` with Blosc, a plugin); after the shuffle the constant
-high bytes of an int64 t compress to almost nothing (uint32 would save under 0.02 byte per event,
-``benchmarks/storage.py``) and int64 never wraps (uint32 microseconds wrap after 71.6 min), so the layout,
-and the format name, stay as they were: older readers read the new files. Bytes per event on flicker and
-gradient-chatter streams are in ``benchmarks/README.md`` (about 1.9 and 2.2, from 13 and 14 in memory).
+:data:`GZIP_LEVEL` by default) or ``lzf``: filters that h5py reads without plugins. DSEC stores t in
+fewer bits relative to ``t_offset`` (DSEC's README; the same group's writer in uzh-rpg/dagr,
+``scripts/downsample_events.py``, writes x, y, p, t as ``u2, u2, u1, u4`` with Blosc, a plugin); after
+the shuffle the constant high bytes of an int64 t compress to almost nothing (uint32 would save under
+0.02 byte per event, ``benchmarks/storage.py``) and int64 never wraps (uint32 microseconds wrap after
+71.6 min), so the layout, and the format name, stay as they were: older readers read the new files.
+Bytes per event on flicker and gradient-chatter streams are in ``benchmarks/README.md`` (about 1.9 and
+2.2, from 13 and 14 in memory).
 
-Event chunks are compressed and written by one background thread (``background=True``, the
-default): :meth:`EventWriter.append` validates in the caller's thread, copies the chunk and queues it
-(at most :data:`QUEUE_CHUNKS` waiting; the caller blocks beyond), so compression overlaps emulation
-(h5py releases the GIL while HDF5 compresses and writes, h5py 3.0 release notes). A failure in the
-thread is raised again by the next call to the writer, and the file is then discarded. The columns
-are gathered into whole chunks before they are written, so the datasets, and the events read back,
-do not depend on how the stream was split into appends nor on the thread.
+Event chunks are compressed and written by one background thread (``background=True``, the default):
+:meth:`EventWriter.append` validates in the caller's thread, copies the chunk and queues it (at most
+:data:`QUEUE_CHUNKS` waiting; the caller blocks beyond), so compression overlaps emulation (h5py
+releases the GIL while HDF5 compresses and writes, h5py 3.0 release notes). A failure in the thread is
+raised again, with its message, by the next ``append``, ``wait`` or ``close`` (and every later one);
+``close`` and leaving a ``with`` block then discard the file. The columns are gathered into whole chunks
+before they are written, so the datasets, and the events read back, do not depend on how the stream was
+split into appends nor on the thread.
 """
 
 from __future__ import annotations
@@ -69,8 +71,9 @@ FORMAT = "gevsim-events-2"
 READABLE_FORMATS = ("gevsim-events-1", FORMAT)
 #: Events per HDF5 chunk of every event column.
 CHUNK = 2**16
-#: Default deflate level of ``compression="gzip"``: level 1 with the shuffle filter is smaller than
-#: the former default (level 4 without shuffle) and 1.5-2x faster to write (benchmarks/README.md).
+#: Default deflate level of ``compression="gzip"``: level 1 after the shuffle filter is 4-6 % smaller than
+#: the former default (level 4, no shuffle) on DVS streams, 1 % larger on gradient chatter, and 1.7-1.9x
+#: faster to write (benchmarks/README.md, "Event storage").
 GZIP_LEVEL = 1
 #: Event chunks queued for the writer thread beyond the one it is writing (the caller blocks when full).
 QUEUE_CHUNKS = 2
