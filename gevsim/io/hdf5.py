@@ -22,6 +22,27 @@ Timestamps must be non-negative. Files of format ``"gevsim-events-1"`` (bool enu
 polarity, no root ``ms_to_idx``) are still read. The file is written under a temporary name beside the
 target and renamed onto it only by a clean :meth:`EventWriter.close`, so a file
 at the target path always carries ``complete = True``.
+
+Storage. The event columns keep their in-memory dtypes, which are already the smallest exact ones for
+the sensors gevsim models (x, y int16; t int64; p, axis one byte each). They are stored in chunks of
+:data:`CHUNK` events, byte-shuffled (HDF5's built-in ``shuffle`` filter) and deflated (``gzip``, level
+:data:`GZIP_LEVEL` by default) or ``lzf``: filters that h5py reads without plugins. DSEC stores t in
+fewer bits relative to ``t_offset`` (DSEC's README; the same group's writer in uzh-rpg/dagr,
+``scripts/downsample_events.py``, writes x, y, p, t as ``u2, u2, u1, u4`` with Blosc, a plugin); after
+the shuffle the constant high bytes of an int64 t compress to almost nothing (uint32 would save under
+0.02 byte per event, ``benchmarks/storage.py``) and int64 never wraps (uint32 microseconds wrap after
+71.6 min), so the layout, and the format name, stay as they were: older readers read the new files.
+Bytes per event on flicker and gradient-chatter streams are in ``benchmarks/README.md`` (about 1.9 and
+2.2, from 13 and 14 in memory).
+
+Event chunks are compressed and written by one background thread (``background=True``, the default):
+:meth:`EventWriter.append` validates in the caller's thread, copies the chunk and queues it (at most
+:data:`QUEUE_CHUNKS` waiting; the caller blocks beyond), so compression overlaps emulation (h5py
+releases the GIL while HDF5 compresses and writes, h5py 3.0 release notes). A failure in the thread is
+raised again, with its message, by the next ``append``, ``wait`` or ``close`` (and every later one);
+``close`` and leaving a ``with`` block then discard the file. The columns are gathered into whole chunks
+before they are written, so the datasets, and the events read back, do not depend on how the stream was
+split into appends nor on the thread.
 """
 
 from __future__ import annotations
@@ -29,6 +50,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import queue
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -46,7 +69,14 @@ log = logging.getLogger(__name__)
 FORMAT = "gevsim-events-2"
 #: Formats EventReader reads: 1 stored the polarity as an HDF5 bool enum and had no root ms_to_idx.
 READABLE_FORMATS = ("gevsim-events-1", FORMAT)
+#: Events per HDF5 chunk of every event column.
 CHUNK = 2**16
+#: Default deflate level of ``compression="gzip"``: level 1 after the shuffle filter is 4-6 % smaller than
+#: the former default (level 4, no shuffle) on DVS streams, 1 % larger on gradient chatter, and 1.7-1.9x
+#: faster to write (benchmarks/README.md, "Event storage").
+GZIP_LEVEL = 1
+#: Event chunks queued for the writer thread beyond the one it is writing (the caller blocks when full).
+QUEUE_CHUNKS = 2
 #: Default bound on the events of one window of :meth:`EventReader.windows` (~13 MiB of brightness events).
 WINDOW_EVENTS = 2**20
 _STANDARD = {"events": BRIGHTNESS_DTYPE, "gradient_events": GRADIENT_DTYPE}
@@ -84,9 +114,10 @@ def _describe(obj, units: str | None, meaning: str | None) -> None:
 
 
 class _Stream:
-    """Write-side state of one event stream: counts, last time, ms_to_idx progress."""
+    """One event stream: its datasets, and the caller's view (events accepted, last time, ms_to_idx
+    entries issued) and the writer's (events written, a partial chunk waiting for more)."""
 
-    def __init__(self, group: h5py.Group, dtype: np.dtype, compression: str):
+    def __init__(self, group: h5py.Group, dtype: np.dtype, filters: dict):
         self.dtype, self.n, self.n_ms = dtype, 0, 0
         self.last_t: int | None = None
         group.attrs["kind"] = "events"
@@ -95,20 +126,116 @@ class _Stream:
         stream = group.name.lstrip("/")
         for name in dtype.names or ():
             boolean = dtype[name] == np.bool_
-            ds = group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=np.uint8 if boolean else dtype[name],
-                                      chunks=(CHUNK,), compression=compression)
+            disk = np.dtype(np.uint8 if boolean else dtype[name])
+            # Whole chunks are written at once: no chunk cache (1 byte holds none), so HDF5 compresses
+            # them in the write call, in the writer thread, not later when the file is closed.
+            ds = group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=disk, chunks=(CHUNK,),
+                                      rdcc_nbytes=1, **_filters(filters, disk))
             if boolean:
                 ds.attrs[BOOL_ATTR] = "bool"
             _describe(ds, *_field_attrs(name, dtype[name], stream))
             self.fields[name] = ds
         self.ms = group.create_dataset("ms_to_idx", shape=(0,), maxshape=(None,), dtype=np.int64,
-                                       chunks=(4096,), compression=compression)
+                                       chunks=(4096,), **_filters(filters, np.dtype(np.int64)))
         _describe(self.ms, *MS_TO_IDX_ATTRS)
+        # Writer side (the writer thread's alone while it runs).
+        self.written, self.written_ms, self.pending = 0, 0, 0
+        self.buffer = {name: np.empty(CHUNK, ds.dtype) for name, ds in self.fields.items()}
+
+    def write(self, events: np.ndarray, ms: np.ndarray) -> None:
+        """Store ``events`` after those written so far and ``ms`` after the ms_to_idx entries: whole
+        chunks go to the file, a partial one waits in the buffer for the next call or :meth:`flush`."""
+        n, i = len(events), 0
+        if self.pending:  # top up the waiting chunk
+            i = min(CHUNK - self.pending, n)
+            for name, buf in self.buffer.items():
+                buf[self.pending:self.pending + i] = events[name][:i]  # bool -> uint8 0/1
+            self.pending += i
+            if self.pending == CHUNK:
+                self._put(self.buffer, CHUNK)
+                self.pending = 0
+        whole = (n - i) // CHUNK * CHUNK
+        if whole:
+            self._put({name: events[name][i:i + whole] for name in self.fields}, whole)
+            i += whole
+        if i < n:
+            for name, buf in self.buffer.items():
+                buf[:n - i] = events[name][i:]
+            self.pending = n - i
+        if len(ms):
+            self.ms.resize((self.written_ms + len(ms),))
+            self.ms[self.written_ms:] = ms
+            self.written_ms += len(ms)
+
+    def flush(self) -> None:
+        """Write the partial chunk waiting in the buffer."""
+        if self.pending:
+            self._put({name: buf[:self.pending] for name, buf in self.buffer.items()}, self.pending)
+            self.pending = 0
+
+    def _put(self, columns: dict[str, np.ndarray], n: int) -> None:
+        n0, n1 = self.written, self.written + n
+        for name, ds in self.fields.items():
+            ds.resize((n1,))
+            ds[n0:n1] = np.ascontiguousarray(columns[name], dtype=ds.dtype)
+        self.written = n1
 
     def extend_ms(self, values: np.ndarray) -> None:
-        self.ms.resize((self.n_ms + len(values),))
-        self.ms[self.n_ms:] = values
+        """Append ms_to_idx entries directly (the writer thread is idle)."""
+        self.ms.resize((self.written_ms + len(values),))
+        self.ms[self.written_ms:] = values
+        self.written_ms += len(values)
         self.n_ms += len(values)
+
+
+def _filters(filters: dict, dtype: np.dtype) -> dict:
+    """h5py's filter arguments for a dataset of ``dtype``: the shuffle only where items have several bytes."""
+    return {**filters, "shuffle": dtype.itemsize > 1}
+
+
+class _Worker:
+    """One thread that runs jobs in order from a bounded queue; the first exception it meets is kept
+    (:meth:`check` raises it) and the jobs after it are dropped."""
+
+    def __init__(self, size: int):
+        self._queue: queue.Queue = queue.Queue(maxsize=size)
+        self.error: BaseException | None = None
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, name="gevsim-hdf5-writer", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            job = self._queue.get()
+            try:
+                if job is None:
+                    return
+                if self.error is None and not self._stop:
+                    job()
+            except BaseException as exc:  # raised again in the caller's thread
+                self.error = exc
+            finally:
+                self._queue.task_done()
+
+    def check(self) -> None:
+        if self.error is not None:
+            raise self.error
+
+    def submit(self, job: Callable[[], object]) -> None:
+        self.check()
+        self._queue.put(job)
+
+    def wait(self) -> None:
+        """Block until the queued jobs are done; raise the first failure."""
+        self._queue.join()
+        self.check()
+
+    def join(self, *, cancel: bool = False) -> None:
+        """Run the queued jobs (drop them with ``cancel``) and end the thread."""
+        self._stop = self._stop or cancel
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
 
 
 class EventWriter:
@@ -125,17 +252,30 @@ class EventWriter:
     seed : int
         Seed of the run.
     compression : {"gzip", "lzf"}
-        Filter for every dataset (both ship with h5py; no plugin needed to read).
+        Filter for every dataset (both ship with h5py; no plugin needed to read), after HDF5's
+        shuffle filter for items of several bytes.
+    gzip_level : int
+        Deflate level (1-9) with ``compression="gzip"``.
+    background : bool
+        Compress and write the event streams in a background thread (see the module's notes); the
+        file's content is the same either way.
     extra_attrs : dict, optional
         More root attributes.
     """
 
     def __init__(self, path: str | os.PathLike, *, width: int, height: int, config_toml: str, seed: int,
-                 compression: str = "gzip", extra_attrs: dict | None = None):
+                 compression: str = "gzip", gzip_level: int = GZIP_LEVEL, background: bool = True,
+                 extra_attrs: dict | None = None):
         if compression not in ("gzip", "lzf"):
             raise ValueError(f"compression must be 'gzip' or 'lzf', got {compression!r}")
+        if isinstance(gzip_level, bool) or not isinstance(gzip_level, int | np.integer) or not 1 <= gzip_level <= 9:
+            raise ValueError(f"gzip_level must be an integer from 1 to 9, got {gzip_level!r}")
         self.path = Path(path)
         self.compression = compression
+        self._filters = {"compression": compression, "compression_opts": int(gzip_level) if compression == "gzip"
+                         else None}
+        self._worker: _Worker | None = None
+        self._background = bool(background)
         self._stage = Staged(self.path, suffix=".tmp")
         self._tmp = self._stage.path
         self._streams: dict[str, _Stream] = {}
@@ -171,6 +311,19 @@ class EventWriter:
     def _check_open(self) -> None:
         if self.closed:
             raise ValueError(f"{self.path}: writer is closed")
+        if self._worker is not None:
+            self._worker.check()  # a failure of the writer thread, raised again here
+
+    def _write(self, state: _Stream, events: np.ndarray, ms: np.ndarray) -> None:
+        """Hand validated events to the writer thread (a copy: the caller may reuse its array), or
+        write them here without one."""
+        if self._background and self._worker is None:
+            self._worker = _Worker(QUEUE_CHUNKS)
+        if self._worker is not None:
+            events = events.copy()
+            self._worker.submit(lambda: state.write(events, ms))
+        else:
+            state.write(events, ms)
 
     # -- events ------------------------------------------------------------------------
     def append(self, stream: str, events: np.ndarray) -> None:
@@ -182,7 +335,8 @@ class EventWriter:
         state = self._streams.get(stream) or self._create_stream(stream, events.dtype)
         if events.dtype != state.dtype:
             raise TypeError(f"stream {stream!r}: chunk dtype {events.dtype} differs from the stream's {state.dtype}")
-        t = np.asarray(events["t"], dtype=np.int64).ravel()
+        events = events.reshape(-1)
+        t = np.asarray(events["t"], dtype=np.int64)
         if len(t) == 0:
             return
         if t[0] < 0:
@@ -195,15 +349,12 @@ class EventWriter:
             i = int(bad[0])
             raise ValueError(f"stream {stream!r}: timestamps must be non-decreasing, "
                              f"got t[{i}]={int(t[i])} us then t[{i + 1}]={int(t[i + 1])} us")
-        n0, n1 = state.n, state.n + len(t)
-        for name, ds in state.fields.items():
-            ds.resize((n1,))
-            ds[n0:n1] = np.ascontiguousarray(events[name], dtype=ds.dtype)  # bool -> uint8 0/1
-        state.n, state.last_t = n1, int(t[-1])
+        n0 = state.n
         k_last = int(t[-1]) // 1000  # entries k <= k_last are now final
-        if k_last >= state.n_ms:
-            ks = np.arange(state.n_ms, k_last + 1, dtype=np.int64) * 1000
-            state.extend_ms(n0 + np.searchsorted(t, ks, side="left"))
+        ks = np.arange(state.n_ms, k_last + 1, dtype=np.int64) * 1000
+        ms = n0 + np.searchsorted(t, ks, side="left")
+        self._write(state, events, ms)
+        state.n, state.last_t, state.n_ms = n0 + len(t), int(t[-1]), state.n_ms + len(ms)
 
     def _create_stream(self, stream: str, dtype: np.dtype) -> _Stream:
         if not isinstance(stream, str) or not stream or "/" in stream or stream == "frames":
@@ -212,9 +363,17 @@ class EventWriter:
             raise TypeError(f"stream {stream!r} must have dtype {_STANDARD[stream]}, got {dtype}")
         if stream in self._file:
             raise ValueError(f"{stream!r} already exists in the file and is not an event stream")
-        state = _Stream(self._file.create_group(stream), dtype, self.compression)
+        state = _Stream(self._file.create_group(stream), dtype, self._filters)
         self._streams[stream] = state
         return state
+
+    def wait(self) -> None:
+        """Block until the events appended so far are compressed and written (but the last partial
+        HDF5 chunk of each stream, which waits for more events or :meth:`close`); raises a failure of
+        the writer thread. Returns at once without one (``background=False``)."""
+        self._check_open()
+        if self._worker is not None:
+            self._worker.wait()
 
     def set_end(self, t_end_us: int) -> None:
         """Set the recording's end time; every ``ms_to_idx`` then covers [0, t_end_us]."""
@@ -233,7 +392,7 @@ class EventWriter:
         if name not in group:
             g = group.create_group(name)
             g.create_dataset("images", shape=(0, *image.shape), maxshape=(None, *image.shape), dtype=image.dtype,
-                             chunks=(1, *image.shape), compression=self.compression)
+                             chunks=(1, *image.shape), **_filters(self._filters, image.dtype))
             g.create_dataset("t", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
             _describe(g["images"], units, meaning)
             _describe(g["t"], *FRAME_T_ATTRS)
@@ -258,7 +417,7 @@ class EventWriter:
         if path_in_file.strip("/") in ("ms_to_idx", "t_offset"):
             raise ValueError(f"{path_in_file!r} at the root is reserved for the DSEC layout of the brightness stream")
         array = np.asarray(array)
-        opts = {"compression": self.compression} if array.ndim and array.size else {}
+        opts = _filters(self._filters, array.dtype) if array.ndim and array.size else {}
         self._file.create_dataset(path_in_file, data=array, **opts)
         _describe(self._file[path_in_file], units, meaning)
         self.set_attrs(path_in_file, **(attrs or {}))
@@ -283,6 +442,9 @@ class EventWriter:
         if self.closed:
             return
         try:
+            if self._worker is not None:
+                self._worker.join()  # the queued chunks are written
+                self._worker.check()
             self._finalise(self._t_end_us if t_end_us is None else int(t_end_us))
             self._file.close()
             if before_commit is not None:
@@ -301,6 +463,7 @@ class EventWriter:
             raise ValueError(f"{self.path}: t_end_us={t_end_us} is before the last event at t={last} us")
         n_ms = -(-t_end_us // 1000) + 1  # k = 0 .. ceil(t_end_ms)
         for state in self._streams.values():
+            state.flush()
             if state.n_ms < n_ms:
                 state.extend_ms(np.full(n_ms - state.n_ms, state.n, dtype=np.int64))
         if "events" in self._streams:  # DSEC's root layout for the brightness stream
@@ -314,7 +477,11 @@ class EventWriter:
         self._file.attrs["complete"] = True
 
     def abort(self) -> None:
-        """Close and delete the temporary file; ``path`` is left untouched."""
+        """Stop the writer thread (dropping what it has not written), close and delete the temporary
+        file; ``path`` is left untouched."""
+        worker = getattr(self, "_worker", None)
+        if worker is not None:
+            worker.join(cancel=True)
         with contextlib.suppress(Exception):
             if getattr(self, "_file", None) is not None and self._file.id.valid:
                 self._file.close()
