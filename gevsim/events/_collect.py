@@ -168,7 +168,14 @@ def move_regions(region, new_start, old_t, old_x, old_y, old_p, old_axis, new_t,
                 new_axis[c + k] = old_axis[a + k]
 
 
-def interleaved(n: int) -> np.ndarray:
+def interleaved(n: int, run: int = 1) -> np.ndarray:
     """0, 8, 16, ..., 1, 9, ...: the order of parallel loops over steps or blocks, so that
-    each thread's contiguous share of the loop mixes all parts (load balance only)."""
-    return np.concatenate([np.arange(r, n, _INTERLEAVE) for r in range(min(_INTERLEAVE, max(n, 1)))])
+    each thread's contiguous share of the loop mixes all parts (load balance only). With
+    ``run`` > 1, runs of that many consecutive items stay together (gradient rows share
+    their neighbours' samples)."""
+    units = -(-n // run)
+    first = np.concatenate([np.arange(r, units, _INTERLEAVE) for r in range(min(_INTERLEAVE, max(units, 1)))])
+    if run == 1:
+        return first
+    items = (first[:, None] * run + np.arange(run)[None, :]).ravel()
+    return items[items < n]

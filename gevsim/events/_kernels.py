@@ -255,7 +255,6 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
         if t0 < T:
             g_new = np.empty(W)
             t_new = np.empty(W, np.int8)
-            idx = np.empty(W, np.int64)
             base = region[y, START]
             cap = region[y, CAP]
             n = region[y, FILL]
@@ -293,26 +292,22 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
                         break
                     if changed:
                         row_tern = tern[axis, y]
-                        c = 0
-                        for i in range(m):  # branch-free list of the comparators that changed
-                            idx[c] = i
-                            c += t_new[i] != row_tern[i * step_x]
-                        for q in range(c):
-                            i = idx[q]
+                        for i in range(m):
                             x = i * step_x
                             old = row_tern[x]
                             new = t_new[i]
-                            th = theta[axis, y, x]
-                            s = _crossing(g_prev[axis, y, x], g_new[i], old, new, th, hysteresis) \
-                                if interpolate else 1.0
-                            te = ta + s * dt
-                            buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_end[t])
-                            buf_x[base + n] = x
-                            buf_y[base + n] = y
-                            buf_p[base + n] = table[old + 1, new + 1]
-                            buf_axis[base + n] = axis
-                            n += 1
-                            row_tern[x] = new
+                            if new != old:
+                                th = theta[axis, y, x]
+                                s = _crossing(g_prev[axis, y, x], g_new[i], old, new, th, hysteresis) \
+                                    if interpolate else 1.0
+                                te = ta + s * dt
+                                buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_end[t])
+                                buf_x[base + n] = x
+                                buf_y[base + n] = y
+                                buf_p[base + n] = table[old + 1, new + 1]
+                                buf_axis[base + n] = axis
+                                n += 1
+                                row_tern[x] = new
                     for i in range(m):
                         g_prev[axis, y, i * step_x] = g_new[i]
                 if stopped:

@@ -65,8 +65,9 @@ class EventBlocks:
     """
 
     def __init__(self, nblocks: int, *, dtype: np.dtype, first_per_step: float, min_free: int,
-                 max_in_flight: int = MAX_IN_FLIGHT):
+                 max_in_flight: int = MAX_IN_FLIGHT, run: int = 1):
         self.nblocks, self.dtype = int(nblocks), np.dtype(dtype)
+        self.order = _collect.interleaved(self.nblocks, run)  # blocks over threads: runs of ``run``
         self.rate = np.full(self.nblocks, float(first_per_step))  # events per step, per block
         self.min_free, self.max_in_flight = int(min_free), int(max_in_flight)
         self.gradient = "axis" in (self.dtype.names or ())
@@ -109,7 +110,7 @@ class EventBlocks:
         region[:, CAP] = np.ceil(self.rate * steps * SLACK).astype(np.int64) + self.min_free
         region[:, START] = np.cumsum(region[:, CAP]) - region[:, CAP]
         bufs = self._buffers(int(region[:, CAP].sum()))
-        order = _collect.interleaved(self.nblocks)
+        order = self.order
         tick = time.perf_counter()
         while True:
             kernel(a, b, *bufs, region, order)

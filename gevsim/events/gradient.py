@@ -134,7 +134,7 @@ class GradientEmulator:
         self.g_prev = np.zeros((2,) + self.shape)
         self.state = np.zeros((2,) + self.shape, np.int8)
         self.blocks = EventBlocks(self.shape[0], dtype=self.dtype,
-                                  first_per_step=self.shape[1] / 4, min_free=self.shape[1])
+                                  first_per_step=self.shape[1] / 4, min_free=self.shape[1], run=8)
 
     def ternary_of(self, image: np.ndarray) -> np.ndarray:
         """Ternary gradients (2, H, W) of one image with this emulator's thresholds."""

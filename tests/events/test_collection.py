@@ -118,8 +118,9 @@ def test_buffers_are_sized_from_the_previous_chunk():
 
 
 def test_interleaved_is_a_permutation():
-    for n in (0, 1, 7, 8, 9, 100):
-        assert sorted(_collect.interleaved(n)) == list(range(n))
+    for n in (0, 1, 7, 8, 9, 100, 261):
+        for run in (1, 8):
+            assert sorted(_collect.interleaved(n, run)) == list(range(n))
 
 
 def test_long_steps_take_the_sorting_path_and_stay_in_time_order():
