@@ -87,10 +87,13 @@ class EventBlocks:
         us_lo, us_hi = step_end_us(t_start_s), step_end_us(t_end_s)
         parts = max(1, math.ceil(float(self.rate.sum()) * n_steps / self.max_in_flight))
         edges = np.unique(np.linspace(0, n_steps, min(parts, max(n_steps, 1)) + 1).round().astype(int))
-        out = [self._run(kernel, int(a), int(b), us_lo, us_hi) for a, b in zip(edges[:-1], edges[1:])]
-        if not out:
-            return np.zeros(0, self.dtype)
-        return out[0] if len(out) == 1 else np.concatenate(out)
+        # Parts are gathered straight into one output array (no concatenation), sized from the
+        # expected events and grown if a part brings more.
+        out = np.empty(int(self.rate.sum() * n_steps * SLACK) if len(edges) > 2 else 0, self.dtype)
+        n = 0
+        for a, b in zip(edges[:-1], edges[1:]):
+            out, n = self._run(kernel, int(a), int(b), us_lo, us_hi, out, n)
+        return out if n == len(out) else out[:n]
 
     def _buffers(self, n: int, *, keep: tuple[np.ndarray, ...] = ()) -> tuple[np.ndarray, ...]:
         """Flat buffers for ``n`` events: the kept ones of earlier chunks where they are large
@@ -104,7 +107,10 @@ class EventBlocks:
                 self._cache = cached
         return cached
 
-    def _run(self, kernel: Kernel, a: int, b: int, us_lo: np.ndarray, us_hi: np.ndarray) -> np.ndarray:
+    def _run(self, kernel: Kernel, a: int, b: int, us_lo: np.ndarray, us_hi: np.ndarray, out: np.ndarray,
+             n: int) -> tuple[np.ndarray, int]:
+        """Steps [a, b): their events go to ``out[n:]`` (a larger array where they do not fit);
+        returns the output array and its new fill."""
         steps = b - a
         region = np.zeros((self.nblocks, STEP_END0 + steps), np.int64)
         region[:, CAP] = np.ceil(self.rate * steps * SLACK).astype(np.int64) + self.min_free
@@ -136,11 +142,16 @@ class EventBlocks:
         per_step = np.diff(ends, axis=1, prepend=0).sum(axis=0)
         self.rate = region[:, FILL] / max(steps, 1)
         out_start = np.concatenate([[0], np.cumsum(per_step)]).astype(np.int64)
-        events = np.empty(int(out_start[-1]), self.dtype)
+        m = int(out_start[-1])
+        if n + m > len(out):
+            grown = np.empty(n + m if n == 0 else max(n + m, 2 * len(out)), self.dtype)
+            grown[:n] = out[:n]
+            out = grown
+        events = out[n:n + m]
         axis = events["axis"] if self.gradient else np.empty(0, np.uint8)
         buf_t, buf_x, buf_y, buf_p, buf_axis = bufs
         _collect.gather(buf_t, buf_x, buf_y, buf_p, buf_axis, region, out_start, us_lo[a:b], us_hi[a:b],
                         events["x"], events["y"], events["t"], events["p"], axis)
         self.collect_s += time.perf_counter() - tock
-        self.events += len(events)
-        return events
+        self.events += m
+        return out, n + m
