@@ -144,9 +144,9 @@ class EventBlocks:
         out_start = np.concatenate([[0], np.cumsum(per_step)]).astype(np.int64)
         m = int(out_start[-1])
         if n + m > len(out):
-            grown = np.empty(n + m if n == 0 else max(n + m, 2 * len(out)), self.dtype)
-            grown[:n] = out[:n]
-            out = grown
+            larger = np.empty(n + m if n == 0 else max(n + m, 2 * len(out)), self.dtype)
+            larger[:n] = out[:n]
+            out = larger
         events = out[n:n + m]
         axis = events["axis"] if self.gradient else np.empty(0, np.uint8)
         buf_t, buf_x, buf_y, buf_p, buf_axis = bufs
