@@ -60,6 +60,22 @@ def _solve(line, out, inv_den, upper, c):
         out[i] = out[i] + upper[i] * out[i + 1]
 
 
+@njit(inline="always")
+def _solve_lines(buf, m, d, inv_den, upper, c):
+    """_solve on the first ``m`` columns of ``buf`` (length, block) at once, in place: the
+    recurrences of independent lines run side by side (vectorised) instead of one
+    latency-bound chain each; each line's arithmetic is that of _solve."""
+    for j in range(m):
+        d[j] = 0.0
+    for i in range(buf.shape[0]):
+        for j in range(m):
+            d[j] = (buf[i, j] + c * d[j]) * inv_den[i]
+            buf[i, j] = d[j]
+    for i in range(buf.shape[0] - 2, -1, -1):
+        for j in range(m):
+            buf[i, j] = buf[i, j] + upper[i] * buf[i + 1, j]
+
+
 @njit(parallel=True, cache=True)
 def diffuse(image: np.ndarray, out: np.ndarray, inv_x: np.ndarray, up_x: np.ndarray, inv_y: np.ndarray,
             up_y: np.ndarray, c: float) -> None:
@@ -91,9 +107,7 @@ def centre_minus_surround(v: np.ndarray, decay: np.ndarray, surround: np.ndarray
     t_steps, h, w = v.shape
     ngroups = (h + ROW_BLOCK - 1) // ROW_BLOCK
     for g in prange(ngroups):
-        # ROW_BLOCK rows at once, transposed into ``buf`` so that the x recurrences of
-        # independent rows run side by side (vectorised) instead of one latency-bound chain;
-        # each row's arithmetic is that of _solve.
+        # ROW_BLOCK rows at once, transposed into ``buf`` (one row per column) for _solve_lines.
         y0 = g * ROW_BLOCK
         ny = min(h, y0 + ROW_BLOCK) - y0
         buf = np.empty((w, ROW_BLOCK))
@@ -102,36 +116,22 @@ def centre_minus_surround(v: np.ndarray, decay: np.ndarray, surround: np.ndarray
             for j in range(ny):
                 for x in range(w):
                     buf[x, j] = np.float64(v[k, y0 + j, x])
-            for j in range(ny):
-                d[j] = 0.0
-            for x in range(w):
-                for j in range(ny):
-                    d[j] = (buf[x, j] + c * d[j]) * inv_x[x]
-                    buf[x, j] = d[j]
-            for x in range(w - 2, -1, -1):
-                for j in range(ny):
-                    buf[x, j] = buf[x, j] + up_x[x] * buf[x + 1, j]
+            _solve_lines(buf, ny, d, inv_x, up_x, c)
             for j in range(ny):
                 for x in range(w):
                     diff[k, y0 + j, x] = buf[x, j]
     nblocks = (w + COLUMN_BLOCK - 1) // COLUMN_BLOCK
     for b in prange(nblocks):
-        # COLUMN_BLOCK neighbouring columns at once, so that memory is read along rows; each
-        # column's arithmetic is that of _solve.
+        # COLUMN_BLOCK neighbouring columns at once (memory read along rows), by _solve_lines.
         x0 = b * COLUMN_BLOCK
         nx = min(w, x0 + COLUMN_BLOCK) - x0
         col = np.empty((h, COLUMN_BLOCK))
         d = np.empty(COLUMN_BLOCK)
         for k in range(t_steps):
-            for j in range(nx):
-                d[j] = 0.0
             for y in range(h):
                 for j in range(nx):
-                    d[j] = (diff[k, y, x0 + j] + c * d[j]) * inv_y[y]
-                    col[y, j] = d[j]
-            for y in range(h - 2, -1, -1):
-                for j in range(nx):
-                    col[y, j] = col[y, j] + up_y[y] * col[y + 1, j]
+                    col[y, j] = diff[k, y, x0 + j]
+            _solve_lines(col, nx, d, inv_y, up_y, c)
             a = decay[k]
             for y in range(h):
                 for j in range(nx):
