@@ -31,8 +31,9 @@ from gevsim.pixel import Photoreceptor, load_preset  # noqa: E402
 def measure(name: str, h: int, w: int, steps: int, chunks: int, preset, chunk) -> None:
     rng = np.random.default_rng(0)
     pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise, rng=rng)
-    volts = [pr.process(*chunk(k)) + 0 for k in range(chunks + 1)]
-    times = [chunk(k)[1] for k in range(chunks + 1)]
+    inputs_ = [chunk(k) for k in range(chunks + 1)]
+    volts = [pr.process(current, t) for current, t in inputs_]
+    times = [t for _, t in inputs_]
     for label, em in (("DVS", BrightnessEmulator((h, w), preset.events, rng=rng)),
                       ("gradient", GradientEmulator((h, w), mismatch_sigma_ln=preset.events.threshold_mismatch_ln,
                                                     rng=rng))):

@@ -24,8 +24,8 @@ MAX_IN_FLIGHT = 1 << 23
 #: Room given to each block beyond the events expected from the previous chunk.
 SLACK = 1.25
 
-#: ``kernel(a, b, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order)`` runs steps [a, b) of the chunk,
-#: taking the blocks in ``order``.
+#: ``kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order)`` runs steps [a, b) of
+#: the chunk (``us_end``: their ends in whole microseconds), taking the blocks in ``order``.
 Kernel = Callable[..., object]
 
 
@@ -48,9 +48,9 @@ class SampledSignal:
         return v, prev, t, first
 
 
-def step_end_us(t_end_s: np.ndarray) -> np.ndarray:
-    """Step boundaries in whole microseconds (rounded as event timestamps are)."""
-    return np.floor(np.asarray(t_end_s, np.float64) * 1e6 + 0.5).astype(np.int64)
+def round_us(t_s: np.ndarray) -> np.ndarray:
+    """Times in whole microseconds, rounded as event timestamps are."""
+    return np.floor(np.asarray(t_s, np.float64) * 1e6 + 0.5).astype(np.int64)
 
 
 class EventBlocks:
@@ -84,7 +84,7 @@ class EventBlocks:
         """Run ``kernel`` over the steps [t_start_s, t_end_s] (in parts if many events are
         expected); return the events in time order."""
         n_steps = len(t_end_s)
-        us_lo, us_hi = step_end_us(t_start_s), step_end_us(t_end_s)
+        us_lo, us_hi = round_us(t_start_s), round_us(t_end_s)
         parts = max(1, math.ceil(float(self.rate.sum()) * n_steps / self.max_in_flight))
         edges = np.unique(np.linspace(0, n_steps, min(parts, max(n_steps, 1)) + 1).round().astype(int))
         # Parts are gathered straight into one output array (no concatenation), sized from the
@@ -95,17 +95,14 @@ class EventBlocks:
             out, n = self._run(kernel, int(a), int(b), us_lo, us_hi, out, n)
         return out if n == len(out) else out[:n]
 
-    def _buffers(self, n: int, *, keep: tuple[np.ndarray, ...] = ()) -> tuple[np.ndarray, ...]:
-        """Flat buffers for ``n`` events: the kept ones of earlier chunks where they are large
-        enough (pages already mapped; none of ``keep``, which still holds events), else new."""
-        cached = self._cache
-        if len(cached[0]) < n or any(a is b for a, b in zip(cached, keep)):
+    def _buffers(self, n: int, *, keep: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, ...]:
+        """Flat buffers for ``n`` events, kept for later chunks: those of earlier chunks where they
+        are large enough (pages already mapped) and not ``keep`` (which still holds events), else new."""
+        if len(self._cache[0]) < n or self._cache is keep:
             p_type = np.int8 if self.gradient else np.bool_
-            cached = (np.empty(n, np.int64), np.empty(n, np.int16), np.empty(n, np.int16), np.empty(n, p_type),
-                      np.empty(n if self.gradient else 0, np.uint8))
-            if not keep:
-                self._cache = cached
-        return cached
+            self._cache = (np.empty(n, np.int64), np.empty(n, np.int16), np.empty(n, np.int16), np.empty(n, p_type),
+                           np.empty(n if self.gradient else 0, np.uint8))
+        return self._cache
 
     def _run(self, kernel: Kernel, a: int, b: int, us_lo: np.ndarray, us_hi: np.ndarray, out: np.ndarray,
              n: int) -> tuple[np.ndarray, int]:
@@ -119,7 +116,7 @@ class EventBlocks:
         order = self.order
         tick = time.perf_counter()
         while True:
-            kernel(a, b, *bufs, region, order)
+            kernel(a, b, us_hi[a:b], *bufs, region, order)
             todo = region[:, RESUME_T] < steps
             if not todo.any():
                 break
@@ -131,7 +128,6 @@ class EventBlocks:
             new_start = np.cumsum(new_cap) - new_cap
             grown = self._buffers(int(new_cap.sum()), keep=bufs)
             _collect.move_regions(region, new_start, *bufs, *grown)
-            self._cache = grown
             region[:, START], region[:, CAP] = new_start, new_cap
             bufs = grown
             self.regrowths += 1

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gevsim.events import _kernels
-from gevsim.events._runner import EventBlocks, SampledSignal, step_end_us
+from gevsim.events._runner import EventBlocks, SampledSignal
 from gevsim.events.types import BRIGHTNESS_DTYPE, empty
 from gevsim.pixel.params import EventParams
 
@@ -77,11 +77,10 @@ class BrightnessEmulator:
             v_prev = ref.copy()
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
         flat = v.reshape(len(t_end), self.shape[0] * self.shape[1])
-        us_end = step_end_us(t_end)
         p = self.params
 
-        def kernel(a, b, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
-            _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end[a:b], ref, v_prev, last_t,
+        def kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
+            _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end, ref, v_prev, last_t,
                                 self.threshold_on_ln, self.threshold_off_ln, self.leak_ln_per_s, p.refractory_s,
                                 self._px_x, self._px_y, buf_t, buf_x, buf_y, buf_p, region, order)
 

@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 from gevsim._validate import real, real_list
 from gevsim.events import _kernels
 from gevsim.events._kernels import EVENT_TABLE
-from gevsim.events._runner import EventBlocks, SampledSignal, step_end_us
+from gevsim.events._runner import EventBlocks, SampledSignal
 from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, empty
 
 PAPER_THRESHOLDS = (4 / 255, 8 / 255, 16 / 255)
@@ -161,10 +161,9 @@ class GradientEmulator:
             state = self.ternary_of(v[0])
             self.initial_state = state.copy()
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
-        us_end = step_end_us(t_end)
 
-        def kernel(a, b, *bufs_and_region):
-            _kernels.gradient(v[a:b], t_start[a:b], t_end[a:b], us_end[a:b], g_prev, state, self.theta,
+        def kernel(a, b, us_end, *bufs_and_region):
+            _kernels.gradient(v[a:b], t_start[a:b], t_end[a:b], us_end, g_prev, state, self.theta,
                               self.hysteresis, self.rc, self.interpolate, EVENT_TABLE, *bufs_and_region)
 
         events = self.blocks.collect(kernel, t_start, t_end)
