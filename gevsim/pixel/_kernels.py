@@ -62,31 +62,95 @@ _F = np.float32
 
 
 @njit(inline="always")
+def _half_uniform(h):
+    """The sign (+-1) and p in (0, 1/2] that a 32-bit hash ``h`` stands for: the top bit is
+    the sign, the other 31 give p."""
+    sign = _F(1.0) - _F(2.0) * _F(np.int32(h >> np.uint32(31)))
+    p = (_F(np.int32(h & np.uint32(0x7FFFFFFF))) + _F(0.5)) * _F(1.0 / 4294967296.0)
+    return sign, p
+
+
+#: Below this p, Acklam's lower-tail branch is used (p_low of his algorithm).
+_P_LOW = _F(0.02425)
+
+
+@njit(inline="always")
+def _central(p):
+    """Acklam's central branch of the inverse normal CDF at p (used for p >= _P_LOW)."""
+    q = p - _F(0.5)
+    r = q * q
+    return ((((((_F(-3.969683028665376e01) * r + _F(2.209460984245205e02)) * r
+                + _F(-2.759285104469687e02)) * r + _F(1.383577518672690e02)) * r
+              + _F(-3.066479806614716e01)) * r + _F(2.506628277459239e00)) * q
+            / (((((_F(-5.447609879822406e01) * r + _F(1.615858368580409e02)) * r
+                  + _F(-1.556989798598866e02)) * r + _F(6.680131188771972e01)) * r
+                + _F(-1.328068155288572e01)) * r + _F(1.0)))
+
+
+@njit(inline="always")
+def _tail(p):
+    """Acklam's lower-tail branch at p (used for p < _P_LOW)."""
+    t = np.sqrt(_F(-2.0) * logf(p))
+    return (((((_F(-7.784894002430293e-03) * t + _F(-3.223964580411365e-01)) * t + _F(-2.400758277161838e00)) * t
+              + _F(-2.549732539343734e00)) * t + _F(4.374664141464968e00)) * t + _F(2.938163982698783e00)) / (
+        (((_F(7.784695709041462e-03) * t + _F(3.224671290700398e-01)) * t + _F(2.445134137142996e00)) * t
+         + _F(3.754408661907416e00)) * t + _F(1.0))
+
+
+@njit(inline="always")
 def normal(h):
     """Standard normal deviate (float32) from a 32-bit hash ``h`` by inversion.
 
     The top bit is the sign; the other 31 give p in (0, 1/2], mapped through
     Acklam's rational inverse normal CDF (central and lower-tail branches,
-    relative error 1.2e-9 in double; here single precision, ~1e-7). Both branches
-    are computed and one selected, so loops using this vectorise. |z| reaches
-    6.3 (p = 2^-32).
+    relative error 1.2e-9 in double; here single precision, ~1e-7). |z| reaches
+    6.3 (p = 2^-32). Loops over many deviates use :func:`normals_row`, which gives
+    the same bits faster.
     """
-    sign = _F(1.0) - _F(2.0) * _F(np.int32(h >> np.uint32(31)))
-    p = (_F(np.int32(h & np.uint32(0x7FFFFFFF))) + _F(0.5)) * _F(1.0 / 4294967296.0)
-    q = p - _F(0.5)
-    r = q * q
-    central = ((((((_F(-3.969683028665376e01) * r + _F(2.209460984245205e02)) * r
-                   + _F(-2.759285104469687e02)) * r + _F(1.383577518672690e02)) * r
-                 + _F(-3.066479806614716e01)) * r + _F(2.506628277459239e00)) * q
-               / (((((_F(-5.447609879822406e01) * r + _F(1.615858368580409e02)) * r
-                     + _F(-1.556989798598866e02)) * r + _F(6.680131188771972e01)) * r
-                   + _F(-1.328068155288572e01)) * r + _F(1.0)))
-    t = np.sqrt(_F(-2.0) * logf(p))
-    tail = (((((_F(-7.784894002430293e-03) * t + _F(-3.223964580411365e-01)) * t + _F(-2.400758277161838e00)) * t
-              + _F(-2.549732539343734e00)) * t + _F(4.374664141464968e00)) * t + _F(2.938163982698783e00)) / (
-        (((_F(7.784695709041462e-03) * t + _F(3.224671290700398e-01)) * t + _F(2.445134137142996e00)) * t
-         + _F(3.754408661907416e00)) * t + _F(1.0))
-    return sign * (tail if p < _F(0.02425) else central)
+    sign, p = _half_uniform(h)
+    return sign * (_tail(p) if p < _P_LOW else _central(p))
+
+
+@njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
+def _central_row(skey, z, sp):
+    """Central-branch deviates z of pixels 0 .. len(z) - 1 of a stream key, and their signed
+    p (sign * p, exact), from which :func:`_tail_row` finds and redoes the tail pixels
+    (branch-free: vectorised)."""
+    for i in range(z.shape[0]):
+        sign, p = _half_uniform(pixel_bits(skey, i))
+        z[i] = sign * _central(p)
+        sp[i] = sign * p
+    return 0
+
+
+@njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
+def _tail_row(z, sp, idx, p_tail):
+    """Replace the deviates of the pixels with p < 0.02425 by the tail branch: list them
+    (branch-free), compute the branch for the list (contiguous, vectorised), put the results back."""
+    m = 0
+    for i in range(z.shape[0]):
+        q = sp[i]
+        idx[m] = i
+        p_tail[m] = q
+        m += abs(q) < _P_LOW
+    for j in range(m):
+        q = p_tail[j]
+        p_tail[j] = (_F(1.0) if q > _F(0.0) else _F(-1.0)) * _tail(abs(q))
+    for j in range(m):
+        z[idx[j]] = p_tail[j]
+    return 0
+
+
+@njit(inline="always")
+def normals_row(skey, z, sp, idx):
+    """Deviates ``normal(pixel_bits(skey, i))`` of pixels i = 0 .. len(z) - 1, bit for bit;
+    sp (float32) and idx (int64), of z's length, are scratch.
+
+    The central branch runs vectorised over all pixels; the lower tail (p < 0.02425, about
+    one pixel in twenty) is computed for those pixels only, also vectorised, so the log and
+    square root of the tail are not paid for the other 95 %."""
+    _central_row(skey, z, sp)
+    _tail_row(z, sp, idx, sp[z.shape[0]:])
 
 
 @njit(cache=True)
@@ -99,40 +163,112 @@ def normals(key, step, count, stream):
     return out
 
 
-@njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _photoreceptor_row(cur, gain, dark, v1, v2, out, k_shot, d, fc_per_a, fc_max, filt, shot_q,
-                       has2, b2, tau2):
-    """One step for a contiguous run of pixels: branch-free so that LLVM vectorises it
-    (the flags are loop invariant). Filter states stay in double precision."""
-    for p in range(cur.shape[0]):
-        itot = np.float64(cur[p]) * gain[p] + dark[p]
-        u = np.float64(logf(np.float32(itot)))
-        fc = min(fc_per_a * itot, fc_max)
-        a = np.float64(expf(np.float32(-_TWO_PI * fc * d))) * filt
-        e1 = v1[p] - u
-        z = normal(pixel_bits(k_shot, p))
-        sd = np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a)))
-        x = u + a * e1 + np.float64(sd * z)
-        v1[p] = x
-        # Second pole, exact for held input: w' = b w + c e1 with c = tau1 (a - b) / (tau1 - tau2).
-        tau1 = 1.0 / (_TWO_PI * fc)
-        near = abs(tau1 - tau2) <= 1e-9 * tau2
-        c = (d / tau2 * b2) if near else (tau1 * (a - b2) / (tau1 - tau2))
-        y2 = u + b2 * (v2[p] - u) + c * e1
-        v2[p] = y2
-        out[p] = np.float32(y2 if has2 else x)
+@njit(cache=True)
+def normals_fast(key, step, count, stream):
+    """The same deviates as :func:`normals`, through :func:`normals_row` (for tests that the two agree)."""
+    z = np.empty(count, np.float32)
+    normals_row(stream_key(key, step, stream), z, np.empty(2 * count, np.float32), np.empty(count, np.int64))
+    return z.astype(np.float64)
+
+
+@njit(inline="always")
+def _filter_input(cur, gain, dark, v1, fc_per_a, fc_max, d, filt):
+    """Total photocurrent, its log u, the cutoff fc, the first pole's decay a over the step
+    and the distance e1 of its state from u."""
+    itot = np.float64(cur) * gain + dark
+    u = np.float64(logf(np.float32(itot)))
+    fc = min(fc_per_a * itot, fc_max)
+    a = np.float64(expf(np.float32(-_TWO_PI * fc * d))) * filt
+    return itot, u, fc, a, v1 - u
+
+
+@njit(inline="always")
+def _second_pole(u, v2, fc, a, e1, d, b2, tau2):
+    """The second pole's new state, exact for held input: w' = b w + c e1 with
+    c = tau1 (a - b) / (tau1 - tau2)."""
+    tau1 = 1.0 / (_TWO_PI * fc)
+    near = abs(tau1 - tau2) <= 1e-9 * tau2
+    c = (d / tau2 * b2) if near else (tau1 * (a - b2) / (tau1 - tau2))
+    return u + b2 * (v2 - u) + c * e1
 
 
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _ou_row(state, out, key, alpha, scale):
-    """Add one Ornstein-Uhlenbeck noise process (exact transition) to a run of pixels."""
+def _photoreceptor_row(cur, gain, dark, v1, v2, out, z, d, fc_per_a, fc_max, filt, shot_q, has2, b2, tau2):
+    """One step for a contiguous run of pixels: branch-free so that LLVM vectorises it.
+    z holds the pixels' shot-noise deviates (read only when shot_q > 0). One loop per
+    combination of the flags, so that none computes what it discards. Filter states stay in
+    double precision."""
+    n = cur.shape[0]
+    if shot_q > 0.0 and has2:
+        for p in range(n):
+            itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
+            sd = np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a)))
+            v1[p] = u + a * e1 + np.float64(sd * z[p])
+            y2 = _second_pole(u, v2[p], fc, a, e1, d, b2, tau2)
+            v2[p] = y2
+            out[p] = np.float32(y2)
+    elif shot_q > 0.0:
+        for p in range(n):
+            itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
+            sd = np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a)))
+            x = u + a * e1 + np.float64(sd * z[p])
+            v1[p] = x
+            out[p] = np.float32(x)
+    elif has2:
+        for p in range(n):
+            itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
+            v1[p] = u + a * e1
+            y2 = _second_pole(u, v2[p], fc, a, e1, d, b2, tau2)
+            v2[p] = y2
+            out[p] = np.float32(y2)
+    else:
+        for p in range(n):
+            itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
+            x = u + a * e1
+            v1[p] = x
+            out[p] = np.float32(x)
+    return 0
+
+
+@njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
+def _ou_row(state, out, z, alpha, scale):
+    """Add one Ornstein-Uhlenbeck noise process (exact transition) to a run of pixels,
+    driven by the deviates z."""
     for p in range(state.shape[0]):
-        s = alpha * state[p] + scale * np.float64(normal(pixel_bits(key, p)))
+        s = alpha * state[p] + scale * np.float64(z[p])
         state[p] = s
         out[p] = np.float32(np.float64(out[p]) + s)
+    return 0
 
 
-@njit(parallel=True, cache=True)
+@njit(inline="never", cache=True)
+def _count_valid(row):
+    """How many values of a run are finite and >= 0 (vectorised; no fast-math, so NaN fails)."""
+    c = np.int32(0)
+    for i in range(row.shape[0]):  # (an index loop: iterating over the slice made LLVM gather)
+        x = row[i]
+        c += np.int32(x >= 0) & np.int32(x < np.inf)
+    return c
+
+
+@njit(parallel=True, nogil=True, cache=True)
+def count_invalid(current):
+    """How many values of ``current`` (T, P) are not finite and >= 0 (NaN included), counted
+    in parallel without temporaries."""
+    T, P = current.shape
+    nblocks = (P + BLOCK - 1) // BLOCK
+    counts = np.zeros(nblocks, np.int64)
+    for b in prange(nblocks):
+        lo = b * BLOCK
+        hi = min(P, lo + BLOCK)
+        c = 0
+        for t in range(T):
+            c += (hi - lo) - np.int64(_count_valid(current[t, lo:hi]))
+        counts[b] = c
+    return counts.sum()
+
+
+@njit(parallel=True, nogil=True, cache=True)
 def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0,
                   fc_ref, i_ref, fc_max, f2, shot_q, out):
     """Advance the photoreceptor over T steps of held photocurrent.
@@ -167,16 +303,22 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
             fn_scale[t, m] = math.sqrt(fn_var[m] * (1.0 - alpha * alpha))
             keys[t, m + 1] = stream_key(key, step0 + t, 3 + m)
     nblocks = (P + BLOCK - 1) // BLOCK
+    shot = shot_q > 0
     for b in prange(nblocks):
         lo = b * BLOCK
         hi = min(P, lo + BLOCK)
+        z = np.empty(hi - lo, np.float32)
+        sp = np.empty(2 * (hi - lo), np.float32)
+        idx = np.empty(hi - lo, np.int64)
         for t in range(T):
             d = dt[t]
             b2 = math.exp(-_TWO_PI * f2 * d) if has2 else 0.0
-            k_shot = keys[t, 0] + np.uint64(lo) * GOLDEN  # so that pixel lo + i hashes key + (lo + i) GOLDEN
+            # Pixel lo + i of a stream hashes key + (lo + i) GOLDEN.
+            if shot:
+                normals_row(keys[t, 0] + np.uint64(lo) * GOLDEN, z, sp, idx)
             _photoreceptor_row(current[t, lo:hi], gain[lo:hi], dark[lo:hi], v1[lo:hi], v2[lo:hi], out[t, lo:hi],
-                               k_shot, d, fc_per_a, fcm, filt, shot_q, has2, b2, tau2)
+                               z, d, fc_per_a, fcm, filt, shot_q, has2, b2, tau2)
             for m in range(M):
-                _ou_row(fn[m, lo:hi], out[t, lo:hi], keys[t, m + 1] + np.uint64(lo) * GOLDEN, fn_alpha[t, m],
-                        fn_scale[t, m])
+                normals_row(keys[t, m + 1] + np.uint64(lo) * GOLDEN, z, sp, idx)
+                _ou_row(fn[m, lo:hi], out[t, lo:hi], z, fn_alpha[t, m], fn_scale[t, m])
     return 0

@@ -95,7 +95,7 @@ class Photoreceptor:
             if np.all(np.isfinite(first)) and np.all(first > 0):  # else the check below reports them
                 v1 = np.log(first)
                 v2 = v1.copy()
-        bad = int(np.count_nonzero(~np.isfinite(flat))) + int(np.count_nonzero(flat < 0))
+        bad = int(_kernels.count_invalid(flat))
         if not bad and np.any(self.dark_a <= 0):
             dark_free = self.dark_a <= 0
             bad = int(np.count_nonzero(flat[:, dark_free] * self.gain[dark_free] <= 0))

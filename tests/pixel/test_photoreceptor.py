@@ -150,6 +150,23 @@ def test_counter_based_normals_are_standard_normal():
     assert abs(np.corrcoef(z[:100_000], other)[0, 1]) < 0.02
 
 
+def test_row_normals_equal_the_scalar_inversion_bit_for_bit():
+    """The kernels' row generator (central branch for all, tail branch for the listed few)
+    gives exactly the deviates of the one-at-a-time inversion, tails of both signs included."""
+    for count in (1, 7, 1024, 100_003):
+        z = _kernels.normals(99, 3, count, 2).astype(np.float32)
+        fast = _kernels.normals_fast(99, 3, count, 2).astype(np.float32)
+        assert np.array_equal(z.view(np.uint32), fast.view(np.uint32))
+    assert np.sum(z < -1.97) > 1000 and np.sum(z > 1.97) > 1000  # both tails (p < 0.02425) were exercised
+
+
+def test_invalid_photocurrent_is_counted_once_per_value():
+    flat = np.ones((3, 2500), np.float32)
+    flat[0, 0], flat[1, 1], flat[2, 2], flat[2, 2400], flat[1, 3] = np.nan, -np.inf, np.inf, -1e-30, -0.0
+    assert _kernels.count_invalid(flat) == 4  # -0.0 is >= 0
+    assert _kernels.count_invalid(flat.astype(np.float64)) == 4
+
+
 @pytest.mark.parametrize(
     "current, times, match",
     [
