@@ -98,6 +98,10 @@ def real_list(values: Any, name: str, *, positive: bool = False) -> tuple[float,
     return tuple(float(v) for v in items)
 
 
+#: Arrays of at least this many values are checked by :mod:`gevsim._finite` (parallel, no temporaries).
+_PARALLEL_SIZE = 1 << 16
+
+
 def real_array(values: Any, name: str, *, nonnegative: bool = False, dtype: Any = None) -> np.ndarray:
     """``values`` as a real array with every value finite (and >= 0 when ``nonnegative``).
 
@@ -110,6 +114,10 @@ def real_array(values: Any, name: str, *, nonnegative: bool = False, dtype: Any 
         arr = arr.astype(dtype, copy=False)
     elif arr.dtype.kind != "f":
         arr = arr.astype(np.float64)
+    if arr.size >= _PARALLEL_SIZE:  # counted on all cores first; the message needs numpy's mask
+        from gevsim._finite import count_invalid
+        if count_invalid(arr, nonnegative=nonnegative) == 0:
+            return arr
     bad = ~np.isfinite(arr)
     if bad.any():
         raise FieldError(name, f"{name} has {int(bad.sum())} non-finite value(s) (NaN or inf) out of {arr.size}"

@@ -207,12 +207,12 @@ def _crossing(g0, g1, t_prev, t_new, theta, hysteresis):
 
 
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _gradient_row(here, there, step_x, n, theta, g_prev, tern, hysteresis, rc, g_new, t_new):
+def _gradient_row(here, there, step_x, n, theta, tern, hysteresis, rc, g_new, t_new, idx):
     """Branch-free (vectorised) pass over one row of comparators of one axis: the new
     gradient and ternary state of comparator i at pixel i * step_x, where the
     neighbour values are ``there`` (same pixel, next row) for G_Y or ``here`` shifted
-    by one for G_X. Returns how many comparators changed state."""
-    changed = 0
+    by one for G_X; then the list ``idx`` of the comparators that change state (in order,
+    branch-free). Returns its length."""
     for i in range(n):
         x = i * step_x
         if there.shape[0] == 0:  # X axis: neighbours in the same row
@@ -224,12 +224,14 @@ def _gradient_row(here, there, step_x, n, theta, g_prev, tern, hysteresis, rc, g
         g = 0.5 * (g + g2) if rc else g
         th = theta[x]
         old = tern[x]
-        up = (g >= th) or (old == 1 and g >= th - hysteresis)
-        down = (g <= -th) or (old == -1 and g <= hysteresis - th)
-        new = np.int8(1) if up else (np.int8(-1) if down else np.int8(0))
+        up = (g >= th) | ((old == 1) & (g >= th - hysteresis))
+        down = (g <= -th) | ((old == -1) & (g <= hysteresis - th))
         g_new[i] = g
-        t_new[i] = new
-        changed += new != old
+        t_new[i] = np.int8(1) if up else (np.int8(-1) if down else np.int8(0))
+    changed = 0
+    for i in range(n):
+        idx[changed] = i
+        changed += t_new[i] != tern[i * step_x]
     return changed
 
 
@@ -255,6 +257,7 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
         if t0 < T:
             g_new = np.empty(W)
             t_new = np.empty(W, np.int8)
+            idx = np.empty(W, np.int64)
             base = region[y, START]
             cap = region[y, CAP]
             n = region[y, FILL]
@@ -267,11 +270,11 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
                         step_x = 2 if rc else 1
                         m = W // 2 if rc else W - 1
                         if rc:
-                            changed = _gradient_row(v[t, y], empty, 2, m, theta[0, y], g_prev[0, y], tern[0, y],
-                                                    hysteresis, True, g_new, t_new)
+                            changed = _gradient_row(v[t, y], empty, 2, m, theta[0, y], tern[0, y], hysteresis,
+                                                    True, g_new, t_new, idx)
                         else:
-                            changed = _gradient_row(v[t, y], empty, 1, m, theta[0, y], g_prev[0, y], tern[0, y],
-                                                    hysteresis, False, g_new, t_new)
+                            changed = _gradient_row(v[t, y], empty, 1, m, theta[0, y], tern[0, y], hysteresis,
+                                                    False, g_new, t_new, idx)
                     else:
                         if y == H - 1 or (rc and y % 2 == 1):
                             continue
@@ -280,34 +283,33 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
                         if rc:
                             # Mean of G_Y(y) and G_Y(y + 1) = (v[y + 2] - v[y]) / 2 (G_Y of the last row is 0).
                             there = v[t, y + 2] if y + 2 < H else v[t, y + 1]
-                            changed = _gradient_row(v[t, y], there, 1, m, theta[1, y], g_prev[1, y], tern[1, y],
-                                                    hysteresis, True, g_new, t_new)
+                            changed = _gradient_row(v[t, y], there, 1, m, theta[1, y], tern[1, y], hysteresis,
+                                                    True, g_new, t_new, idx)
                         else:
-                            changed = _gradient_row(v[t, y], v[t, y + 1], 1, m, theta[1, y], g_prev[1, y],
-                                                    tern[1, y], hysteresis, False, g_new, t_new)
+                            changed = _gradient_row(v[t, y], v[t, y + 1], 1, m, theta[1, y], tern[1, y],
+                                                    hysteresis, False, g_new, t_new, idx)
                     if n + changed > cap:  # nothing of this row and axis is written; resume here
                         stopped = True
                         region[y, RESUME_T] = t
                         region[y, RESUME_I] = axis
                         break
-                    if changed:
-                        row_tern = tern[axis, y]
-                        for i in range(m):
-                            x = i * step_x
-                            old = row_tern[x]
-                            new = t_new[i]
-                            if new != old:
-                                th = theta[axis, y, x]
-                                s = _crossing(g_prev[axis, y, x], g_new[i], old, new, th, hysteresis) \
-                                    if interpolate else 1.0
-                                te = ta + s * dt
-                                buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_end[t])
-                                buf_x[base + n] = x
-                                buf_y[base + n] = y
-                                buf_p[base + n] = table[old + 1, new + 1]
-                                buf_axis[base + n] = axis
-                                n += 1
-                                row_tern[x] = new
+                    row_tern = tern[axis, y]
+                    row_g = g_prev[axis, y]
+                    row_theta = theta[axis, y]
+                    for q in range(changed):
+                        i = idx[q]
+                        x = i * step_x
+                        old = row_tern[x]
+                        new = t_new[i]
+                        s = _crossing(row_g[x], g_new[i], old, new, row_theta[x], hysteresis) if interpolate else 1.0
+                        te = ta + s * dt
+                        buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_end[t])
+                        buf_x[base + n] = x
+                        buf_y[base + n] = y
+                        buf_p[base + n] = table[old + 1, new + 1]
+                        buf_axis[base + n] = axis
+                        n += 1
+                        row_tern[x] = new
                     for i in range(m):
                         g_prev[axis, y, i * step_x] = g_new[i]
                 if stopped:

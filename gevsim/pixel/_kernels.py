@@ -241,33 +241,6 @@ def _ou_row(state, out, z, alpha, scale):
     return 0
 
 
-@njit(inline="never", cache=True)
-def _count_valid(row):
-    """How many values of a run are finite and >= 0 (vectorised; no fast-math, so NaN fails)."""
-    c = np.int32(0)
-    for i in range(row.shape[0]):  # (an index loop: iterating over the slice made LLVM gather)
-        x = row[i]
-        c += np.int32(x >= 0) & np.int32(x < np.inf)
-    return c
-
-
-@njit(parallel=True, nogil=True, cache=True)
-def count_invalid(current):
-    """How many values of ``current`` (T, P) are not finite and >= 0 (NaN included), counted
-    in parallel without temporaries."""
-    T, P = current.shape
-    nblocks = (P + BLOCK - 1) // BLOCK
-    counts = np.zeros(nblocks, np.int64)
-    for b in prange(nblocks):
-        lo = b * BLOCK
-        hi = min(P, lo + BLOCK)
-        c = 0
-        for t in range(T):
-            c += (hi - lo) - np.int64(_count_valid(current[t, lo:hi]))
-        counts[b] = c
-    return counts.sum()
-
-
 @njit(parallel=True, nogil=True, cache=True)
 def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0,
                   fc_ref, i_ref, fc_max, f2, shot_q, out):

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.constants import elementary_charge
 
+from gevsim._finite import count_invalid
 from gevsim.pixel import _kernels
 from gevsim.pixel.noise import fixed_pattern, output_noise_poles
 from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
@@ -95,7 +96,7 @@ class Photoreceptor:
             if np.all(np.isfinite(first)) and np.all(first > 0):  # else the check below reports them
                 v1 = np.log(first)
                 v2 = v1.copy()
-        bad = int(_kernels.count_invalid(flat))
+        bad = count_invalid(flat, nonnegative=True)
         if not bad and np.any(self.dark_a <= 0):
             dark_free = self.dark_a <= 0
             bad = int(np.count_nonzero(flat[:, dark_free] * self.gain[dark_free] <= 0))

@@ -9,6 +9,7 @@ import pytest
 from numba import njit
 from scipy import stats
 
+from gevsim._finite import count_invalid
 from gevsim.pixel import NoiseParams, Photoreceptor, PhotoreceptorParams, _kernels, shot_noise_variance_ln
 
 QUIET = NoiseParams(shot_noise=False, dark_current_a=1e-18)
@@ -163,8 +164,12 @@ def test_row_normals_equal_the_scalar_inversion_bit_for_bit():
 def test_invalid_photocurrent_is_counted_once_per_value():
     flat = np.ones((3, 2500), np.float32)
     flat[0, 0], flat[1, 1], flat[2, 2], flat[2, 2400], flat[1, 3] = np.nan, -np.inf, np.inf, -1e-30, -0.0
-    assert _kernels.count_invalid(flat) == 4  # -0.0 is >= 0
-    assert _kernels.count_invalid(flat.astype(np.float64)) == 4
+    assert count_invalid(flat, nonnegative=True) == 4  # -0.0 is >= 0
+    assert count_invalid(flat.astype(np.float64), nonnegative=True) == 4
+    assert count_invalid(flat) == 3  # only NaN and the infinities
+    big = np.zeros((7, 100, 1000))  # several parallel blocks, a ragged last one
+    big[6, 99, 999] = big[0, 0, 0] = np.nan
+    assert count_invalid(big) == 2
 
 
 @pytest.mark.parametrize(
