@@ -311,7 +311,7 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
                         n += 1
                         row_tern[x] = new
                     for i in range(m):
-                        g_prev[axis, y, i * step_x] = g_new[i]
+                        row_g[i * step_x] = g_new[i]
                 if stopped:
                     break
                 region[y, STEP_END0 + t] = n

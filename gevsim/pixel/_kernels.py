@@ -144,7 +144,7 @@ def _tail_row(z, sp, idx, p_tail):
 @njit(inline="always")
 def normals_row(skey, z, sp, idx):
     """Deviates ``normal(pixel_bits(skey, i))`` of pixels i = 0 .. len(z) - 1, bit for bit;
-    sp (float32) and idx (int64), of z's length, are scratch.
+    sp (float32, twice z's length) and idx (int64, z's length) are scratch.
 
     The central branch runs vectorised over all pixels; the lower tail (p < 0.02425, about
     one pixel in twenty) is computed for those pixels only, also vectorised, so the log and
@@ -183,6 +183,13 @@ def _filter_input(cur, gain, dark, v1, fc_per_a, fc_max, d, filt):
 
 
 @njit(inline="always")
+def _shot_noise(shot_q, fc, itot, a, z):
+    """The shot-noise term added to the first pole's state over a step (exact for the
+    Ornstein-Uhlenbeck transition), driven by the deviate z."""
+    return np.float64(np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a))) * z)
+
+
+@njit(inline="always")
 def _second_pole(u, v2, fc, a, e1, d, b2, tau2):
     """The second pole's new state, exact for held input: w' = b w + c e1 with
     c = tau1 (a - b) / (tau1 - tau2)."""
@@ -202,16 +209,14 @@ def _photoreceptor_row(cur, gain, dark, v1, v2, out, z, d, fc_per_a, fc_max, fil
     if shot_q > 0.0 and has2:
         for p in range(n):
             itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
-            sd = np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a)))
-            v1[p] = u + a * e1 + np.float64(sd * z[p])
+            v1[p] = u + a * e1 + _shot_noise(shot_q, fc, itot, a, z[p])
             y2 = _second_pole(u, v2[p], fc, a, e1, d, b2, tau2)
             v2[p] = y2
             out[p] = np.float32(y2)
     elif shot_q > 0.0:
         for p in range(n):
             itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
-            sd = np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a)))
-            x = u + a * e1 + np.float64(sd * z[p])
+            x = u + a * e1 + _shot_noise(shot_q, fc, itot, a, z[p])
             v1[p] = x
             out[p] = np.float32(x)
     elif has2:
