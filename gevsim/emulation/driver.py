@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.constants import elementary_charge
 
+from gevsim import _portable as pm
 from gevsim._validate import real
 from gevsim.emulation import layout
 from gevsim.emulation.config import EmulationConfig, check_consistency
@@ -250,10 +251,10 @@ def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):
         wt = weights_at(setup.waveforms, np.array([t]))
         wm = weights_at(mean, np.array([t]))
         t_us = int(round(t * 1e6))
-        wr.append_frame(layout.LOG_PHOTOCURRENT, np.log(photocurrent_at(setup, np.array([t]), wt)[0] + dark)
+        wr.append_frame(layout.LOG_PHOTOCURRENT, pm.log(photocurrent_at(setup, np.array([t]), wt)[0] + dark)
                         .astype(np.float32), t_us, **layout.FRAME_ATTRS[layout.LOG_PHOTOCURRENT])
         wr.append_frame(layout.LOG_PHOTOCURRENT_NO_FLICKER,
-                        np.log(photocurrent_at(setup, np.array([t]), wm)[0] + dark).astype(np.float32), t_us,
+                        pm.log(photocurrent_at(setup, np.array([t]), wm)[0] + dark).astype(np.float32), t_us,
                         **layout.FRAME_ATTRS[layout.LOG_PHOTOCURRENT_NO_FLICKER])
         if aps is not None and t >= config.aps_exposure_s:
             start = t - config.aps_exposure_s

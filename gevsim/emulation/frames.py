@@ -46,13 +46,13 @@ unchanged) and :func:`linear_intensity` inverts it for reconstruction.
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from gevsim import _portable as pm
 from gevsim._validate import increasing, real, real_array
 from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS, FRAME_EMULATORS, check_emulator
@@ -101,9 +101,9 @@ def log_intensity(frames: ArrayLike, *, log_mode: str = "offset", log_eps: float
     _check_log_mode(log_mode, log_eps, linlog_threshold)
     f = np.asarray(frames, dtype=np.float64)
     if log_mode == "offset":
-        return np.log(f + log_eps)
+        return pm.log(f + log_eps)
     a = float(linlog_threshold)
-    return np.where(f >= a, np.log(np.maximum(f, a)), math.log(a) + (f - a) / a)
+    return np.where(f >= a, pm.log(np.maximum(f, a)), float(pm.log(a)) + (f - a) / a)
 
 
 def linear_intensity(log: ArrayLike, *, log_mode: str = "offset", log_eps: float = LOG_EPS,
@@ -113,10 +113,10 @@ def linear_intensity(log: ArrayLike, *, log_mode: str = "offset", log_eps: float
     _check_log_mode(log_mode, log_eps, linlog_threshold)
     y = np.asarray(log, dtype=np.float64)
     if log_mode == "offset":
-        return np.exp(y) - log_eps
+        return pm.exp(y) - log_eps
     a = float(linlog_threshold)
-    la = math.log(a)
-    return np.where(y >= la, np.exp(np.maximum(y, la)), a * (1.0 + (y - la)))
+    la = float(pm.log(a))
+    return np.where(y >= la, pm.exp(np.maximum(y, la)), a * (1.0 + (y - la)))
 
 
 def file_log_mode(attrs: Mapping) -> dict:

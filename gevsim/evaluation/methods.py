@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gevsim import _portable as pm
 from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.emulation.frames import file_log_mode, linear_intensity
@@ -135,7 +136,7 @@ def _complementary(r, t0, shape, on, off):
         raise ConfigError("the complementary filter needs APS frames: emulate with aps = true", source=str(r.path))
     aps, aps_t = r.frames(layout.APS)
     offset = float(r.array_attrs(f"/frames/{layout.APS}").get("offset_dn", 0.0))
-    aps_log = np.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
+    aps_log = pm.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
     aps_t = np.asarray(aps_t, np.int64)
     if aps_t.size:
         t0 = min(t0, int(aps_t[0]))

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import ArrayLike
 
+from gevsim import _portable as pm
 from gevsim._validate import real
 from gevsim.events.brightness import BrightnessEmulator
 from gevsim.pixel.params import EventParams
@@ -161,7 +162,7 @@ class CenterSurroundEmulator:
         self.dvs = BrightnessEmulator(shape, params, rng=rng)
         self.shape = self.dvs.shape
         self.surround_tau_s = float(surround_tau_s)
-        self.c = float(surround_length_px) ** 2
+        self.c = float(surround_length_px) * float(surround_length_px)
         self._x = thomas_coefficients(self.shape[1], self.c)
         self._y = thomas_coefficients(self.shape[0], self.c)
         self.surround: np.ndarray | None = None
@@ -180,7 +181,7 @@ class CenterSurroundEmulator:
         if len(t_end) == 0:
             return self.dvs.process(v, t_end)
         tau = self.surround_tau_s
-        decay = np.exp(-(t_end - t_start) / tau) if tau > 0 else np.zeros(len(t_end))
+        decay = pm.exp(-(t_end - t_start) / tau) if tau > 0 else np.zeros(len(t_end))
         if first:  # the surround starts settled on the first sample
             decay[0] = 0.0
         surround = np.zeros(self.shape) if first or self.surround is None else self.surround.copy()

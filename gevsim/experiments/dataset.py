@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from gevsim import __version__
+from gevsim import _portable as pm
 from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import EmulationConfig
@@ -179,7 +180,7 @@ def _waveform(rng: np.random.Generator, rz: Randomize) -> dict:
         return {"type": kind, "mains_hz": float(rz.mains_hz[int(rng.integers(len(rz.mains_hz)))]), "phase_rad": phase}
     if kind == "dc":
         return {"type": "dc"}
-    f = float(np.exp(rng.uniform(*np.log(rz.frequency_hz))))
+    f = float(pm.exp(rng.uniform(*pm.log(rz.frequency_hz))))  # log-uniform
     if kind == "pwm":
         return {"type": "pwm", "frequency_hz": f, "duty": float(rng.uniform(*rz.duty)),
                 "phase_s": phase / (2.0 * math.pi * f)}
@@ -202,7 +203,7 @@ def sequence_parameters(config: DatasetConfig, index: int) -> dict:
     sensor = config.sensors[int(rng.integers(len(config.sensors)))]
     groups = _group_names(scene) if config.randomize.waveforms else ()
     waveforms = {g: _waveform(rng, config.randomize) for g in groups}
-    light_scale = float(np.exp(rng.uniform(*np.log(config.randomize.light_scale))))
+    light_scale = float(pm.exp(rng.uniform(*pm.log(config.randomize.light_scale))))
     return {"index": index, "scene": scene, "sensor": sensor, "waveforms": waveforms, "light_scale": light_scale,
             "seed": int(rng.integers(2**31))}
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 import gevsim
+from gevsim._portable import weighted_sum
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments.study import Study, flicker_group, run_config, run_id
@@ -166,7 +167,8 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     assert setup.chip_lux_per_a is not None  # prepare() sets it
     data: dict[str, Any] = {
             "mean_current_a": mean_basis.sum(axis=0),
-            "chip_lux": np.tensordot(setup.chip_lux_per_a, mean_basis, axes=1),
+            "chip_lux": weighted_sum(np.asarray(setup.chip_lux_per_a)[None, :], mean_basis.reshape(len(mean_basis), -1))
+            .reshape(mean_basis.shape[1:]),
             "dominant_group": np.argmax(mean_basis, axis=0).astype(np.int16),
             "group_names": np.array(m.group_names)}
     for variant, per_emulator in folded.items():

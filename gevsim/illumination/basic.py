@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from gevsim import _portable as pm
+
 from .base import FieldError, PeriodicWaveform, PiecewiseLinear, Waveform, as_time, real
 
 __all__ = ["DC", "Sinusoid", "PWM"]
@@ -66,11 +68,11 @@ class Sinusoid(PeriodicWaveform):
     def __call__(self, t: Any) -> np.ndarray:
         t = as_time(t)
         r = self._phase(t)  # phase reduction keeps sin() accurate at large t
-        return np.maximum(1.0 + self.modulation * np.sin(self._omega * r + self.phase_rad), 0.0)
+        return np.maximum(1.0 + self.modulation * pm.sin(self._omega * r + self.phase_rad), 0.0)
 
     def _cum_one(self, r: np.ndarray) -> np.ndarray:
         w, phi = self._omega, self.phase_rad
-        return r - (self.modulation / w) * (np.cos(w * r + phi) - math.cos(phi))
+        return r - (self.modulation / w) * (pm.cos(w * r + phi) - pm.cos(phi))
 
     def value_range(self) -> tuple[float, float]:
         return (1.0 - self.modulation, 1.0 + self.modulation)

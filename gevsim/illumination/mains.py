@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from gevsim import _portable as pm
+
 from .base import FieldError, Waveform, real
 from .basic import Sinusoid
 from .table import Table
@@ -42,7 +44,7 @@ SODIUM_PERSISTENCE_S = 0.7e-3
 def first_order_response(mains_hz: float, tau_s: float) -> tuple[float, float]:
     """Return ``(a, phi)`` of the low-passed ``sin^2`` drive at ``2 mains_hz``."""
     x = 4.0 * math.pi * mains_hz * tau_s
-    return 1.0 / math.sqrt(1.0 + x * x), math.atan(x)
+    return 1.0 / math.sqrt(1.0 + x * x), float(pm.atan(x))
 
 
 class MainsLamp(Waveform):
@@ -129,7 +131,7 @@ class Fluorescent(_FirstOrderLamp):
     def lag_rad(self) -> float:
         if self.modulation is not None:
             a = self.modulation
-            return 0.5 * math.pi if a == 0 else math.atan(math.sqrt(max(1.0 / (a * a) - 1.0, 0.0)))
+            return 0.5 * math.pi if a == 0 else float(pm.atan(math.sqrt(max(1.0 / (a * a) - 1.0, 0.0))))
         tau = FLUORESCENT_PERSISTENCE_S if self.persistence_s is None else self.persistence_s
         return first_order_response(self.mains_hz, tau)[1]
 
@@ -194,7 +196,7 @@ class SodiumHID(MainsLamp):
         dark = np.linspace(-half, half, self._N_DARK + 1)
         lit = np.linspace(half, p - half, self._N_ON + 1)
         x = np.concatenate([dark, lit[1:]])
-        drive = np.sin(math.pi * x / p) ** 2
+        drive = np.square(pm.sin(math.pi * x / p))
         p0 = np.concatenate([np.zeros(self._N_DARK), drive[self._N_DARK:-1]])
         p1 = np.concatenate([np.zeros(self._N_DARK), drive[self._N_DARK + 1:]])
         if half == 0.0:  # no dark band: drop its zero-length segments
@@ -212,14 +214,14 @@ def _periodic_first_order(h: np.ndarray, p0: np.ndarray, p1: np.ndarray, tau: fl
     """
     if tau == 0.0:
         return np.concatenate([[p1[-1]], p1])
-    e = np.exp(-h / tau)
+    e = pm.exp(-h / tau)
     s_tau = (p1 - p0) / h * tau
     c = p1 - s_tau + (s_tau - p0) * e
     y = np.empty(h.size + 1)
     y[0] = 0.0
     for k in range(h.size):
         y[k + 1] = e[k] * y[k] + c[k]
-    y0 = y[-1] / -math.expm1(-float(h.sum()) / tau)  # fixed point of the one-period map
+    y0 = y[-1] / -float(pm.expm1(-float(h.sum()) / tau))  # fixed point of the one-period map
     y[0] = y0
     for k in range(h.size):
         y[k + 1] = e[k] * y[k] + c[k]

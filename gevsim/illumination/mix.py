@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from gevsim._portable import weighted_sum
 from gevsim._validate import real_array
 
 from .base import Waveform
@@ -34,8 +35,9 @@ def mix(basis: Any, weights: Any) -> np.ndarray:
     Returns
     -------
     ndarray, shape (H, W[, C]) or (T, H, W[, C])
-        float32 if ``basis`` is float32 (halves memory; sums accumulate in
-        float32 through BLAS), else float64.
+        float32 if ``basis`` is float32 (halves memory), else float64. Sums accumulate in
+        float64 in light-group order (:func:`gevsim._portable.weighted_sum`, not BLAS: the same
+        bits on every CPU).
     """
     b = np.asarray(basis)
     if b.ndim not in (3, 4):
@@ -49,7 +51,8 @@ def mix(basis: Any, weights: Any) -> np.ndarray:
         raise ValueError(f"weights have {w.shape[-1]} light groups (shape {w.shape}) "
                          f"but basis has {b.shape[0]} (shape {b.shape})")
     real_array(w, "weights")
-    return np.tensordot(w.astype(dtype), b, axes=([-1], [0]))
+    out = weighted_sum(w.reshape(-1, w.shape[-1]), b.reshape(b.shape[0], -1), dtype=dtype)
+    return out.reshape(w.shape[:-1] + b.shape[1:])
 
 
 def mix_poses(basis: Any, basis_times_s: Any, t_s: Any, weights: Any) -> np.ndarray:
@@ -96,9 +99,9 @@ def mix_poses(basis: Any, basis_times_s: Any, t_s: Any, weights: Any) -> np.ndar
     for seg in np.unique(i):
         rows = np.flatnonzero(i == seg)
         wr = w[rows]
-        lo = ((1.0 - a[rows])[:, None] * wr).astype(dtype, copy=False) @ b[seg].reshape(k, -1)
-        hi = (a[rows][:, None] * wr).astype(dtype, copy=False) @ b[seg + 1].reshape(k, -1)
-        out[rows] = (lo + hi).reshape((len(rows),) + shape)
+        both = np.concatenate([(1.0 - a[rows])[:, None] * wr, a[rows][:, None] * wr], axis=1)  # (rows, 2K)
+        pair = np.concatenate([b[seg].reshape(k, -1), b[seg + 1].reshape(k, -1)])  # (2K, N)
+        out[rows] = weighted_sum(both, pair, dtype=dtype).reshape((len(rows),) + shape)
     return out
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim._portable import combine
 from gevsim._validate import FieldError, increasing, real
 from gevsim.errors import ConfigError, MissingExtraError
 from gevsim.io.evreal import import_evreal
@@ -51,7 +52,7 @@ def _to_gray(img: np.ndarray, *, channels: bool, source: str) -> np.ndarray:
         if c in (1, 2):  # gray, gray + alpha
             img = img[..., 0]
         elif c in (3, 4):  # RGB, RGBA
-            img = img[..., :3] @ np.asarray(REC601_LUMA)
+            img = combine(img[..., :3], REC601_LUMA)
         else:
             raise ConfigError(f"cannot make a grayscale image of {c} channels", source=source)
     return img

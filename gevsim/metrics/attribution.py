@@ -27,6 +27,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
+from gevsim import _portable as pm
+
 
 @dataclass(frozen=True)
 class Interval:
@@ -147,14 +149,18 @@ def _coefficients(counts: np.ndarray, harmonics: int, scale: float) -> np.ndarra
     """c_m = scale sum_b n_b exp(-2 pi i m phi_b) at bin centres, for one histogram (B,) or many (R, B)."""
     bins = counts.shape[-1]
     phi = (np.arange(bins) + 0.5) / bins
-    basis = np.exp(-2j * np.pi * np.outer(phi, np.arange(1, harmonics + 1)))  # (B, M)
-    return (counts @ basis) * scale
+    angle = 2.0 * np.pi * phi[:, None] * np.arange(1, harmonics + 1)[None, :]  # (B, M)
+    n = np.asarray(counts, dtype=np.float64)
+    rows = n.reshape(-1, bins)
+    re = pm.weighted_sum(rows, pm.cos(angle))
+    im = pm.weighted_sum(rows, pm.sin(angle))
+    return ((re - 1j * im) * scale).reshape(n.shape[:-1] + (harmonics,))
 
 
 def _power(c: np.ndarray, n: np.ndarray | float, scale: float) -> np.ndarray:
     """Bias-corrected variance of the modulation, sum_m 2 (|c_m|^2 - N scale^2): a Poisson process of
     N uniform phases has E|c_m|^2 = N scale^2 for every m."""
-    return np.sum(2.0 * (np.abs(c) ** 2 - np.asarray(n)[..., None] * scale**2), axis=-1)
+    return np.sum(2.0 * (np.square(np.abs(c)) - np.asarray(n)[..., None] * (scale * scale)), axis=-1)
 
 
 def _signed_root(p):

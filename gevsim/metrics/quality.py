@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from skimage.metrics import mean_squared_error, structural_similarity
 
+from gevsim import _portable as pm
 from gevsim._validate import real, real_array
 
 SSIM_KWARGS = dict(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=1.0)
@@ -68,7 +69,7 @@ def ssim(pred: ArrayLike, gt: ArrayLike) -> float:
 def psnr(pred: ArrayLike, gt: ArrayLike) -> float:
     """10 log10(1 / MSE) in dB on the [0, 1]-clipped frames; ``inf`` when they are equal."""
     e = mse(pred, gt)
-    return math.inf if e == 0.0 else 10.0 * math.log10(1.0 / e)
+    return math.inf if e == 0.0 else 10.0 * float(pm.log10(1.0 / e))
 
 
 def lpips_unavailable_reason() -> str | None:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from gevsim import _portable as pm
 from gevsim._validate import real, real_array, size
 
 __all__ = ["Lens", "focal_plane_irradiance", "field_angle_map", "cos4_map"]
@@ -63,12 +64,12 @@ class Lens:
     @property
     def irradiance_factor(self) -> float:
         """On-axis E / L = T * pi / (4 N^2), in sr (W/m^2 per W/(m^2 sr))."""
-        return self.transmission * math.pi / (4.0 * self.f_number**2)
+        return self.transmission * math.pi / (4.0 * self.f_number * self.f_number)
 
     def fov_x_deg(self, width: int, *, pitch_m: float) -> float:
         """Horizontal field of view (degrees) of ``width`` pixels of pitch ``pitch_m``."""
         pitch_m = real(pitch_m, "pitch_m", low=0.0, low_open=True)
-        return math.degrees(2.0 * math.atan(width * pitch_m / (2.0 * self.focal_length_m)))
+        return math.degrees(2.0 * float(pm.atan(width * pitch_m / (2.0 * self.focal_length_m))))
 
 
 def focal_plane_irradiance(radiance: ArrayLike, *, lens: Lens, cos4: ArrayLike | None = None) -> np.ndarray:
@@ -124,17 +125,26 @@ def field_angle_map(width: int, height: int, *, fov_x_deg: float) -> np.ndarray:
     numpy.ndarray
         (height, width) float64 array.
     """
+    x, y, f_px = _pixel_offsets(width, height, fov_x_deg)
+    return pm.atan(np.sqrt(x[None, :] * x[None, :] + y[:, None] * y[:, None]) / f_px)
+
+
+def _pixel_offsets(width: int, height: int, fov_x_deg: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Pixel-centre offsets from the optical axis (x, y) and the focal length, all in pixels."""
     width, height = size(width, height)
     fov = real(fov_x_deg, "fov_x_deg", low=0.0, low_open=True)
     if fov >= 180.0:
         raise ValueError(f"fov_x_deg must be < 180 for a pinhole camera, got {fov!r}")
-    f_px = (width / 2.0) / math.tan(math.radians(fov) / 2.0)
-    x = np.arange(width) + 0.5 - width / 2.0
-    y = np.arange(height) + 0.5 - height / 2.0
-    r = np.hypot(x[None, :], y[:, None])
-    return np.arctan(r / f_px)
+    f_px = (width / 2.0) / float(pm.tan(math.radians(fov) / 2.0))
+    return np.arange(width) + 0.5 - width / 2.0, np.arange(height) + 0.5 - height / 2.0, f_px
 
 
 def cos4_map(width: int, height: int, *, fov_x_deg: float) -> np.ndarray:
-    """cos^4 of :func:`field_angle_map` (natural vignetting), (height, width)."""
-    return np.cos(field_angle_map(width, height, fov_x_deg=fov_x_deg)) ** 4
+    """cos^4 of :func:`field_angle_map` (natural vignetting), (height, width).
+
+    Computed without trigonometry: cos^2(theta) = f^2 / (f^2 + r^2) for a pixel at r from the axis.
+    """
+    x, y, f_px = _pixel_offsets(width, height, fov_x_deg)
+    f2 = f_px * f_px
+    c2 = f2 / (f2 + (x[None, :] * x[None, :] + y[:, None] * y[:, None]))
+    return c2 * c2

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.integrate import trapezoid
 
+from gevsim._portable import combine
 from gevsim._validate import real, real_array
 from gevsim.errors import ConfigError, suggest
 
@@ -77,7 +78,7 @@ def luminance(rgb_or_mono: ArrayLike, *, mono: bool | None = None) -> np.ndarray
     if mono or (mono is None and a.ndim == 2):
         return a.copy()
     if a.ndim >= 1 and a.shape[-1] == 3:
-        return a @ REC709_LUMA_WEIGHTS.astype(a.dtype)
+        return combine(a, REC709_LUMA_WEIGHTS)
     if a.ndim >= 1 and a.shape[-1] == 1:
         return a[..., 0].copy()
     raise ValueError(
@@ -211,7 +212,7 @@ def spectrum_to_rgb(sd: Spectrum, *, luminance_cd_m2: float) -> np.ndarray:
         xyz / xyz[1], "sRGB", None, chromatic_adaptation_transform=None, apply_cctf_encoding=False
     )
     rgb = np.clip(np.asarray(rgb, dtype=float), 0.0, None)
-    y = float(rgb @ REC709_LUMA_WEIGHTS)
+    y = float(combine(rgb, REC709_LUMA_WEIGHTS))
     if not y > 0:
         raise ValueError("spectrum maps to black in sRGB after clipping negative components")
     return rgb * (lv / K_M_LM_PER_W / y)

@@ -142,7 +142,7 @@ class Pixel:
     @property
     def area_m2(self) -> float:
         """Photosensitive area, pitch^2 * fill_factor, in m^2."""
-        return self.pitch_m**2 * self.fill_factor
+        return self.pitch_m * self.pitch_m * self.fill_factor
 
     def qe_at(self, wavelength_nm: ArrayLike) -> np.ndarray:
         """This pixel's QE at ``wavelength_nm``."""

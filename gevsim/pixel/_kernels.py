@@ -23,6 +23,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from gevsim._portable import exp_scalar
 from gevsim.pixel._fastmath import expf, logf
 
 BLOCK = 1024  # pixels per parallel work item (fixed, so results do not depend on threads)
@@ -276,7 +277,7 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
     for t in range(T):
         keys[t, 0] = stream_key(key, step0 + t, 1)
         for m in range(M):
-            alpha = math.exp(-_TWO_PI * fn_hz[m] * dt[t])
+            alpha = exp_scalar(-_TWO_PI * fn_hz[m] * dt[t])
             fn_alpha[t, m] = alpha
             fn_scale[t, m] = math.sqrt(fn_var[m] * (1.0 - alpha * alpha))
             keys[t, m + 1] = stream_key(key, step0 + t, 3 + m)
@@ -290,7 +291,7 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
         idx = np.empty(hi - lo, np.int64)
         for t in range(T):
             d = dt[t]
-            b2 = math.exp(-_TWO_PI * f2 * d) if has2 else 0.0
+            b2 = exp_scalar(-_TWO_PI * f2 * d) if has2 else 0.0
             # Pixel lo + i of a stream hashes key + (lo + i) GOLDEN.
             if shot:
                 normals_row(keys[t, 0] + np.uint64(lo) * GOLDEN, z, sp, idx)

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.constants import elementary_charge
 
+from gevsim import _portable as pm
 from gevsim.pixel.params import NoiseParams
 
 
@@ -34,10 +35,13 @@ def flicker_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.nda
     McWhorter's construction); total variance = (flicker_noise_v / n U_T)^2."""
     if noise.flicker_noise_v == 0:
         return np.zeros(0), np.zeros(0)
-    decades = math.log10(noise.flicker_noise_high_hz / noise.flicker_noise_low_hz)
+    lo, hi = noise.flicker_noise_low_hz, noise.flicker_noise_high_hz
+    decades = float(pm.log10(hi / lo))
     m = max(2, min(8, math.ceil(decades) + 1))
-    hz = np.geomspace(noise.flicker_noise_low_hz, noise.flicker_noise_high_hz, m)
-    var = np.full(m, (noise.flicker_noise_v / volts_per_ln) ** 2 / m)
+    hz = lo * pm.exp(np.arange(m) / (m - 1) * float(pm.log(hi / lo)))  # geometric, lo to hi
+    hz[0], hz[-1] = lo, hi
+    v = noise.flicker_noise_v / volts_per_ln
+    var = np.full(m, v * v / m)
     return hz, var
 
 
@@ -48,7 +52,7 @@ def output_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndar
     hz, var = flicker_noise_poles(noise, volts_per_ln)
     if noise.read_noise_v > 0:
         hz = np.r_[noise.read_noise_bandwidth_hz, hz]
-        var = np.r_[(noise.read_noise_v / volts_per_ln) ** 2, var]
+        var = np.r_[(noise.read_noise_v / volts_per_ln) * (noise.read_noise_v / volts_per_ln), var]
     return hz, var
 
 
@@ -61,5 +65,5 @@ def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *,
     gain = 1.0 + noise.prnu * rng.standard_normal(shape)
     gain = np.clip(gain, 0.0, None)
     s = noise.dark_current_spread
-    dark = noise.dark_current_a * np.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
+    dark = noise.dark_current_a * pm.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
     return gain, dark

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.constants import elementary_charge
 
+from gevsim import _portable as pm
 from gevsim._finite import count_invalid
 from gevsim.pixel import _kernels
 from gevsim.pixel.noise import fixed_pattern, output_noise_poles
@@ -73,7 +74,7 @@ class Photoreceptor:
     def steady_state(self, photocurrent_a: ArrayLike) -> np.ndarray:
         """Noise-free settled output (ln units) for a constant photocurrent (H, W)."""
         i = np.asarray(photocurrent_a, float).reshape(-1)
-        return np.log(i * self.gain + self.dark_a).reshape(self.shape)
+        return pm.log(i * self.gain + self.dark_a).reshape(self.shape)
 
     def process(self, photocurrent_a: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Advance over T steps and return the output (T, H, W) float32, in ln units.
@@ -94,7 +95,7 @@ class Photoreceptor:
         if not self.started:
             first = flat[0].astype(np.float64) * self.gain + self.dark_a
             if np.all(np.isfinite(first)) and np.all(first > 0):  # else the check below reports them
-                v1 = np.log(first)
+                v1 = pm.log(first)
                 v2 = v1.copy()
         bad = count_invalid(flat, nonnegative=True)
         if not bad and np.any(self.dark_a <= 0):

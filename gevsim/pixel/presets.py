@@ -137,4 +137,4 @@ def lux_to_photocurrent_a(lux: float, *, pixel_pitch_m: float, fill_factor: floa
     from gevsim.optics import lamp_spectrum, responsivity_a_per_lm
 
     sd = lamp_spectrum(spectrum, source=source, key="sensor.bandwidth_reference_spectrum")
-    return float(lux * pixel_pitch_m**2 * fill_factor * responsivity_a_per_lm(sd))
+    return float(lux * pixel_pitch_m * pixel_pitch_m * fill_factor * responsivity_a_per_lm(sd))

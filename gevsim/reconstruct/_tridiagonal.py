@@ -20,12 +20,14 @@ import functools
 import numpy as np
 from numba import njit
 
+from gevsim import _portable as pm
+
 
 @functools.lru_cache(maxsize=32)
 def factor(shape: tuple[int, int], dtype: str) -> np.ndarray:
     """m[y, u] of the LU factorisation for an (H, W) grid (column u = 0 left at 0)."""
     h, w = shape
-    lam = 2.0 * np.cos(np.pi * np.arange(w) / w) - 2.0
+    lam = 2.0 * pm.cos(np.pi * np.arange(w) / w) - 2.0
     m = np.zeros((h, w))
     prev = np.zeros(w)
     for y in range(h):

@@ -38,6 +38,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
+from gevsim._portable import exp_scalar
 from gevsim._validate import increasing, real, real_array, size
 from gevsim.events.types import BRIGHTNESS_DTYPE
 
@@ -66,14 +67,14 @@ def _advance(ex, ey, et, ec, frames, frame_t, jf, until, state, last, alpha):
         if tf <= te:  # new reference: bring every pixel to tf first
             for y in range(h):
                 for x in range(w):
-                    b = math.exp(-alpha * (tf - last[y, x]) * 1e-6)
+                    b = exp_scalar(-alpha * (tf - last[y, x]) * 1e-6)
                     state[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b
                     last[y, x] = tf
             ref = frames[jf]
             jf += 1
         else:
             x, y = ex[ie], ey[ie]
-            b = math.exp(-alpha * (te - last[y, x]) * 1e-6)
+            b = exp_scalar(-alpha * (te - last[y, x]) * 1e-6)
             state[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b + ec[ie]
             last[y, x] = te
             ie += 1
@@ -87,7 +88,7 @@ def _estimate(frames, jf, tout, state, last, alpha, out):
     ref = frames[jf - 1] if jf > 0 else frames[0]
     for y in range(h):
         for x in range(w):
-            b = math.exp(-alpha * (tout - last[y, x]) * 1e-6)
+            b = exp_scalar(-alpha * (tout - last[y, x]) * 1e-6)
             out[y, x] = ref[y, x] + (state[y, x] - ref[y, x]) * b
 
 

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import scipy.fft
 
+from gevsim import _portable as pm
 from gevsim.errors import suggest
 from gevsim.reconstruct import _tridiagonal
 from gevsim.reconstruct._sor import sor_numba
@@ -100,7 +101,7 @@ def sor(lhat: np.ndarray, *, c: float = 1.0, alpha: float = PAPER_ALPHA,
 @functools.lru_cache(maxsize=64)
 def _inverse_eigenvalues(n: int, dtype: str) -> np.ndarray:
     """1 / eigenvalues 2 cos(pi k / n) - 2 of the 1-D Neumann second difference; 0 at k = 0."""
-    lam = 2.0 * np.cos(np.pi * np.arange(n) / n) - 2.0
+    lam = 2.0 * pm.cos(np.pi * np.arange(n) / n) - 2.0
     lam[0] = 1.0
     inv = 1.0 / lam
     inv[0] = 0.0  # the mean is unknown: zero-frequency mode set to 0
@@ -158,7 +159,7 @@ def _dct2(lhat: np.ndarray, *, c: float = 1.0) -> np.ndarray:
 @functools.lru_cache(maxsize=32)
 def _inverse_2d(shape: tuple[int, int]) -> np.ndarray:
     h, w = shape
-    lam = (2.0 * np.cos(np.pi * np.arange(h) / h) - 2.0)[:, None] + (2.0 * np.cos(np.pi * np.arange(w) / w) - 2.0)
+    lam = (2.0 * pm.cos(np.pi * np.arange(h) / h) - 2.0)[:, None] + (2.0 * pm.cos(np.pi * np.arange(w) / w) - 2.0)
     lam[0, 0] = 1.0
     inv = 1.0 / lam
     inv[0, 0] = 0.0

@@ -11,6 +11,7 @@ import numba
 import numpy as np
 import pytest
 
+from gevsim import _portable as pm
 from gevsim.events import BrightnessEmulator, CenterSurroundEmulator, GradientEmulator, _collect
 from gevsim.events._runner import EventBlocks
 from gevsim.pixel.params import EventParams
@@ -31,10 +32,10 @@ def signal() -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(13)
     h, w, n = 36, 70, 81
     yy, xx = np.mgrid[0:h, 0:w]
-    tex = 0.3 * np.sin(xx / 3.0) * np.cos(yy / 5.0)
+    tex = 0.3 * pm.sin(xx / 3.0) * pm.cos(yy / 5.0)
     t = 2e-4 * np.arange(1, n + 1) + 1.3e-5 * rng.random(n).cumsum()
     lamp = np.where(np.mod(t * 100.0, 1.0) < 0.5, 0.6, -0.6)
-    v = tex[None] + np.roll(tex, 1, axis=1)[None] * np.sin(t * 900)[:, None, None] + lamp[:, None, None]
+    v = tex[None] + np.roll(tex, 1, axis=1)[None] * pm.sin(t * 900)[:, None, None] + lamp[:, None, None]
     return (v + rng.normal(0, 0.05, v.shape)).astype(np.float32), t
 
 

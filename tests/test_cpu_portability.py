@@ -1,0 +1,89 @@
+"""The pinned outputs hold on other CPUs' code paths, emulated on this machine (issue 21).
+
+numpy picks SIMD kernels, glibc picks FMA or SSE2 variants of libm, OpenBLAS picks a GEMM kernel
+and numba compiles for the host, all at run time. Each can be steered to what another x86-64 CPU
+would get:
+
+- ``NPY_DISABLE_CPU_FEATURES`` switches numpy's AVX-512 (or AVX2 too) kernels off;
+- ``GLIBC_TUNABLES=glibc.cpu.hwcaps=-AVX2,-FMA,...`` makes glibc choose its SSE2 libm;
+- ``OPENBLAS_CORETYPE`` picks OpenBLAS's kernel;
+- ``NUMBA_CPU_NAME`` makes numba compile for another CPU (with a fresh ``NUMBA_CACHE_DIR``:
+  numba keys its cache by CPU, but a fresh one leaves no doubt).
+
+The pinned-output, event-collection and CSDVS pins, and the portable functions' own pin, run
+again in a subprocess under each; passing means the same SHA-256 as the native run (the pins are
+hard-coded). A clone once failed 3 of these pins on an AMD EPYC with AVX2 only (FACTS.md).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PINNED = [
+    "tests/test_pinned_outputs.py",
+    "tests/events/test_collection.py",
+    "tests/events/test_center_surround.py::test_events_are_bit_identical_to_the_per_step_kernel",
+    "tests/test_portable.py::test_bits_are_pinned",
+]
+CPUS = {
+    # An AVX2 machine without AVX-512 (AMD EPYC Zen 2/3, Intel Haswell to Comet Lake): numpy keeps
+    # its X86_V3 (AVX2, FMA) kernels only.
+    "avx2": {"numpy_keeps": {"X86_V3"}, "NUMBA_CPU_NAME": "haswell", "OPENBLAS_CORETYPE": "Haswell",
+             "GLIBC_TUNABLES": "glibc.cpu.hwcaps=-AVX512F,-AVX512DQ,-AVX512BW,-AVX512VL"},
+    # The x86-64 baseline: no AVX, no FMA (numpy keeps its compiled-in baseline, SSE4.2 for numpy 2.4;
+    # libm and numba go down to SSE2).
+    "generic": {"numpy_keeps": set(), "NUMBA_CPU_NAME": "generic", "OPENBLAS_CORETYPE": "Nehalem",
+                "GLIBC_TUNABLES": "glibc.cpu.hwcaps=-AVX2,-FMA,-FMA4,-AVX,-AVX512F,-AVX512DQ,-AVX512BW,-AVX512VL"},
+}
+
+
+def cpu_environment(cpu: str) -> dict[str, str]:
+    """This process's environment with the switches of ``cpu``."""
+    from numpy._core._multiarray_umath import __cpu_dispatch__  # numpy's run-time dispatch targets
+
+    spec = dict(CPUS[cpu])
+    keep = spec.pop("numpy_keeps")
+    env = dict(os.environ)
+    env.update(spec)
+    env["NPY_DISABLE_CPU_FEATURES"] = " ".join(f for f in __cpu_dispatch__ if f not in keep)
+    env.pop("PYTEST_ADDOPTS", None)
+    return env
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cpu", sorted(CPUS))
+def test_pins_hold_on_another_cpu(cpu, tmp_path):
+    env = cpu_environment(cpu)
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba-cache")
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *PINNED],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, f"pins differ on the emulated {cpu} CPU:\n{proc.stdout[-6000:]}\n{proc.stderr[-3000:]}"
+    assert " passed" in proc.stdout and "failed" not in proc.stdout
+
+
+def test_the_switches_change_code_paths():
+    """The switches are not inert: where this CPU has AVX-512, numpy's exp gives other bits under
+    them; where it has FMA, glibc's sin does (else this CPU already takes those paths)."""
+    flags = set()
+    for line in Path("/proc/cpuinfo").read_text().splitlines():
+        if line.startswith("flags"):
+            flags = set(line.split(":", 1)[1].split())
+            break
+    if "avx512f" not in flags and "fma" not in flags:
+        pytest.skip("this CPU has neither AVX-512 nor FMA: it already takes the baseline paths")
+    code = ("import numpy as np, hashlib; x = np.linspace(-30, 30, 200001); "
+            "print(hashlib.sha256(np.exp(x).tobytes()).hexdigest(), hashlib.sha256(np.sin(x).tobytes()).hexdigest())")
+    run = [sys.executable, "-c", code]
+    native = subprocess.run(run, capture_output=True, text=True, check=True).stdout.split()
+    other = subprocess.run(run, capture_output=True, text=True, check=True,
+                           env=cpu_environment("generic")).stdout.split()
+    if "avx512f" in flags:
+        assert native[0] != other[0], "NPY_DISABLE_CPU_FEATURES did not change numpy's exp"
+    if "fma" in flags:
+        assert native[1] != other[1], "GLIBC_TUNABLES did not change glibc's sin"
