@@ -7,9 +7,10 @@
 #               out/demo_study (report.md)
 #   make test   runs the test suite, ruff and mypy included (tests/test_lint.py,
 #               tests/test_typing.py); pytest -m "not slow" leaves out the seconds-long renders
-# Both bootstrap .venv, the package with its extras, and the LLVM runtime that
-# Mitsuba's fast CPU variant needs (apt-get, when run as root). Re-running
-# either redoes nothing that is finished.
+#   make lock   regenerates requirements.lock (exact versions) from pyproject.toml's ranges
+# Both bootstrap .venv with the exact versions of requirements.lock (gevsim and its
+# extras), and the LLVM runtime that Mitsuba's fast CPU variant needs (apt-get, when
+# run as root). Re-running either redoes nothing that is finished.
 
 PYTHON ?= python3
 VENV   := .venv
@@ -17,15 +18,22 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.gevsim-installed
 DEMO_OUT ?= out/demo
 
-.PHONY: demo test llvm clean
+.PHONY: demo test llvm lock clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
-$(STAMP): pyproject.toml | $(PY)
-	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[plot,test,dask,denoise,aedat4]'
+LOCK   := requirements.lock
+EXTRAS := plot,test,dask,denoise,aedat4
+
+$(STAMP): pyproject.toml $(LOCK) | $(PY)
+	$(PY) -m pip install -q -c $(LOCK) --upgrade pip
+	$(PY) -m pip install -q -c $(LOCK) -e '.[$(EXTRAS)]'
+	$(PY) -m pip install -q -r $(LOCK)
 	touch $@
+
+lock:
+	PYTHON=$(PYTHON) EXTRAS=$(EXTRAS) bash scripts/lock.sh
 
 llvm:
 	@bash scripts/ensure-llvm.sh

@@ -55,9 +55,10 @@ def _progress(desc: str, enabled: bool, unit: str = "pose"):
 
 
 def cmd_info(args: argparse.Namespace) -> int:
+    from gevsim._lock import status
     from gevsim.render.backend import describe
 
-    for key, value in describe().items():
+    for key, value in {**describe(), "lock": status()}.items():
         print(f"{key:>9}: {value}")
     return 0
 
