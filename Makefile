@@ -40,7 +40,7 @@ llvm:
 
 demo: $(STAMP) llvm
 	$(VENV)/bin/gevsim info
-	$(VENV)/bin/gevsim render office --out $(DEMO_OUT) --frames 4000 --plots --cache .gevsim-cache
+	$(VENV)/bin/gevsim render office --out $(DEMO_OUT) --width 96 --height 72 --frames 4000 --plots --cache .gevsim-cache
 	$(VENV)/bin/gevsim study experiments/demo.toml --out out/demo_study --cache .gevsim-cache
 
 test: $(STAMP) llvm
