@@ -56,15 +56,54 @@ def cpu_environment(cpu: str) -> dict[str, str]:
     return env
 
 
+@pytest.fixture(scope="module")
+def numba_caches(tmp_path_factory) -> dict[str, str]:
+    """One fresh numba cache per emulated CPU, shared by the tests of this module."""
+    return {cpu: str(tmp_path_factory.mktemp(f"numba-{cpu}")) for cpu in CPUS}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("cpu", sorted(CPUS))
-def test_pins_hold_on_another_cpu(cpu, tmp_path):
+def test_pins_hold_on_another_cpu(cpu, numba_caches):
     env = cpu_environment(cpu)
-    env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba-cache")
+    env["NUMBA_CACHE_DIR"] = numba_caches[cpu]
     proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *PINNED],
                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, f"pins differ on the emulated {cpu} CPU:\n{proc.stdout[-6000:]}\n{proc.stderr[-3000:]}"
     assert " passed" in proc.stdout and "failed" not in proc.stdout
+
+
+@pytest.fixture(scope="module")
+def native_run(tmp_path_factory) -> tuple[Path, Path, str]:
+    """A small rendered scene emulated natively: (config, render cache, digest of the HDF5 file)."""
+    from test_pinned_outputs import h5_digest
+
+    from gevsim.cli import main
+
+    tmp = tmp_path_factory.mktemp("rendered")
+    config = tmp / "run.toml"
+    config.write_text(f'[emulation]\nscene = "{ROOT / "tests" / "data" / "card.toml"}"\nsensor = "davis346"\n'
+                      'seed = 4\nstep_s = 2e-5\nchunk_steps = 50\nframe_rate_hz = 1000.0\naps = true\n')
+    assert main(["emulate", str(config), "--out", str(tmp / "native.h5"), "--cache", str(tmp / "cache"), "-q"]) == 0
+    return config, tmp / "cache", h5_digest(tmp / "native.h5")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cpu", sorted(CPUS))
+def test_a_cached_render_gives_the_same_file_on_another_cpu(cpu, native_run, numba_caches, tmp_path):
+    """Renders are compiled for the host CPU (README, Reproducibility); from the same cached render
+    on, an emulation (events of all four emulators, APS frames, ground truth) is the same bits."""
+    from test_pinned_outputs import h5_digest
+
+    config, cache, native = native_run
+    env = cpu_environment(cpu)
+    env["NUMBA_CACHE_DIR"] = numba_caches[cpu]
+    out = tmp_path / f"{cpu}.h5"
+    proc = subprocess.run([sys.executable, "-m", "gevsim.cli", "emulate", str(config), "--out", str(out),
+                           "--cache", str(cache), "-q"], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert h5_digest(out) == native
 
 
 def test_the_switches_change_code_paths():

@@ -200,10 +200,11 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     frame_t = config.time.frame_times_s(setup.duration_s)
     counts = {EMULATORS[n].stream: 0 for n in emulators}
     dark = float(preset.noise.dark_current_a)
+    # render_noise_json with sorted keys: a fresh render and a cache hit list them in other orders.
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,
              "flicker": flicker, "noise": noise, "variant": setup.variant.variant,
              "scene_toml": resolved_config(m), "emulators": list(emulators),
-             "render_noise_json": json.dumps(setup.render_quality, default=float)}
+             "render_noise_json": json.dumps(setup.render_quality, default=float, sort_keys=True)}
     pixel_s = 0.0
     event_s = {n: 0.0 for n in emulators}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
