@@ -269,16 +269,59 @@ def atan(x):
     return atan_scalar(x)
 
 
+@njit(inline="never", cache=True)
+def _sum_rows(o, w, b0, b1, b2, b3, k_n):
+    """o[i] = ((w[0] b0[i] + w[1] b1[i]) + w[2] b2[i]) + w[3] b3[i], for the first k_n terms (k_n <= 4),
+    in float64; contiguous slices, so LLVM vectorises it."""
+    w0, w1, w2, w3 = w[0], w[1 % k_n], w[2 % k_n], w[3 % k_n]
+    if k_n == 1:
+        for i in range(o.shape[0]):
+            o[i] = w0 * np.float64(b0[i])
+    elif k_n == 2:
+        for i in range(o.shape[0]):
+            o[i] = w0 * np.float64(b0[i]) + w1 * np.float64(b1[i])
+    elif k_n == 3:
+        for i in range(o.shape[0]):
+            o[i] = (w0 * np.float64(b0[i]) + w1 * np.float64(b1[i])) + w2 * np.float64(b2[i])
+    else:
+        for i in range(o.shape[0]):
+            o[i] = ((w0 * np.float64(b0[i]) + w1 * np.float64(b1[i])) + w2 * np.float64(b2[i])) \
+                + w3 * np.float64(b3[i])
+
+
+@njit(inline="never", cache=True)
+def _add_rows(o, w, b0, b1, b2, b3, k_n):
+    """o[i] += ((w[0] b0[i] + ...)) for the next k_n terms; for more than four groups (in float64 o)."""
+    for i in range(o.shape[0]):
+        acc = np.float64(o[i]) + w[0] * np.float64(b0[i])
+        if k_n > 1:
+            acc = acc + w[1] * np.float64(b1[i])
+        if k_n > 2:
+            acc = acc + w[2] * np.float64(b2[i])
+        if k_n > 3:
+            acc = acc + w[3] * np.float64(b3[i])
+        o[i] = acc
+
+
 @njit(parallel=True, nogil=True, cache=True)
-def _weighted_sum(w, b, out):
+def _weighted_sum(w, b, out, block):
+    """out[t, i] = (w[t, 0] b[0, i] + w[t, 1] b[1, i]) + ..., summed in float64 in group order
+    (out is float64 when there are more than four groups), stored in out's dtype; blocks of rows
+    in parallel."""
     t_n, k_n = w.shape
     n = b.shape[1]
-    for t in prange(t_n):
-        for i in range(n):
-            acc = w[t, 0] * b[0, i]
-            for k in range(1, k_n):
-                acc = acc + w[t, k] * b[k, i]
-            out[t, i] = acc
+    nb = (n + block - 1) // block
+    for j in prange(t_n * nb):
+        t = j // nb
+        lo = (j % nb) * block
+        hi = min(n, lo + block)
+        o = out[t, lo:hi]
+        m = min(k_n, 4)
+        _sum_rows(o, w[t, :m], b[0, lo:hi], b[1 % k_n, lo:hi], b[2 % k_n, lo:hi], b[3 % k_n, lo:hi], m)
+        for k in range(4, k_n, 4):
+            m = min(k_n - k, 4)
+            _add_rows(o, w[t, k:k + m], b[k, lo:hi], b[k + 1, lo:hi] if m > 1 else b[k, lo:hi],
+                      b[k + 2, lo:hi] if m > 2 else b[k, lo:hi], b[k + 3, lo:hi] if m > 3 else b[k, lo:hi], m)
 
 
 def weighted_sum(weights: np.ndarray, basis: np.ndarray, *, dtype: type = np.float64) -> np.ndarray:
@@ -286,14 +329,15 @@ def weighted_sum(weights: np.ndarray, basis: np.ndarray, *, dtype: type = np.flo
 
     The matrix product without BLAS, whose kernel (and so whose last bits) depends on the CPU.
     ``weights`` (T, K) and ``basis`` (K, N) are read as float64 (float32 values are exact in it);
-    the result is cast to ``dtype`` once, at the end.
+    each sum is rounded to ``dtype`` once, at the end.
     """
     w = np.ascontiguousarray(weights, dtype=np.float64)
     b = np.ascontiguousarray(basis, dtype=np.float64) if basis.dtype != np.float32 else np.ascontiguousarray(basis)
     if w.ndim != 2 or b.ndim != 2 or w.shape[1] != b.shape[0] or w.shape[1] == 0:
         raise ValueError(f"weights (T, K) and basis (K, N) with K >= 1 expected, got {w.shape} and {b.shape}")
-    out = np.empty((w.shape[0], b.shape[1]), np.float64)
-    _weighted_sum(w, b, out)
+    single = np.dtype(dtype) == np.float32 and w.shape[1] <= 4
+    out = np.empty((w.shape[0], b.shape[1]), np.float32 if single else np.float64)
+    _weighted_sum(w, b, out, 8192)
     return out.astype(dtype, copy=False)
 
 

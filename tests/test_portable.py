@@ -90,13 +90,22 @@ def test_identities():
     np.testing.assert_array_equal(pm.cos(-x), pm.cos(x))
 
 
+@pytest.mark.parametrize("groups", [1, 2, 3, 4, 5, 9])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_weighted_sum_adds_in_group_order(groups, dtype):
+    w = RNG.normal(size=(7, groups))
+    b = RNG.normal(size=(groups, 20_000)).astype(dtype)  # more than one block per row
+    expected = w[:, :1] * b[0].astype(np.float64)
+    for k in range(1, groups):  # the same operations in the same order: the same bits
+        expected = expected + w[:, k:k + 1] * b[k].astype(np.float64)
+    out = pm.weighted_sum(w, b, dtype=dtype)
+    assert out.dtype == dtype
+    np.testing.assert_array_equal(out, expected.astype(dtype))
+
+
 def test_weighted_sum_and_combine():
     w = RNG.normal(size=(7, 3))
     b = RNG.normal(size=(3, 50))
-    out = pm.weighted_sum(w, b)
-    expected = w[:, :1] * b[0] + w[:, 1:2] * b[1] + w[:, 2:3] * b[2]  # the same order: the same bits
-    np.testing.assert_array_equal(out, expected)
-    assert pm.weighted_sum(w, b.astype(np.float32), dtype=np.float32).dtype == np.float32
     rgb = RNG.random((4, 5, 3))
     np.testing.assert_array_equal(pm.combine(rgb, (0.2, 0.7, 0.1)),
                                   rgb[..., 0] * 0.2 + rgb[..., 1] * 0.7 + rgb[..., 2] * 0.1)
