@@ -149,7 +149,7 @@ def _render_overrides(args: argparse.Namespace) -> dict:
 
 
 def _override_emulation(config, args: argparse.Namespace):
-    """An emulation config with the command line's --width/--height/--duration/--emulators."""
+    """An emulation config with the command line's --width/--height/--duration/--emulators/--cold-start."""
     import dataclasses
 
     changes: dict = {}
@@ -159,6 +159,8 @@ def _override_emulation(config, args: argparse.Namespace):
         changes["duration_s"] = args.duration
     if (names := _emulator_names(args)) is not None:
         changes["emulators"] = names
+    if getattr(args, "cold_start", False):
+        changes["cold_start"] = True
     if not changes:
         return config
     config = dataclasses.replace(config, **changes)
@@ -468,6 +470,8 @@ def build_parser() -> argparse.ArgumentParser:
     _run_overrides(e)
     e.add_argument("--no-flicker", action="store_true", help="replace every lamp waveform by its mean")
     e.add_argument("--no-noise", action="store_true", help="ideal pixel: no noise, no mismatch, no leak")
+    e.add_argument("--cold-start", action="store_true", dest="cold_start",
+                   help="start as if just switched on (default: a sensor that has been running)")
     e.add_argument("--cache", metavar="DIR", help="basis image cache")
     e.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     e.set_defaults(func=cmd_emulate)

@@ -16,6 +16,9 @@ pins were recomputed for issue 21 (the same bits on every CPU): the Poisson solv
 (cos), the brightness integrators' decay (exp) and PSNR (log10) now use gevsim._portable instead of
 numpy/libm, whose last bits depend on the CPU; frames moved by at most 4.4e-16, scores by 4e-15 dB.
 The synthetic inputs below use gevsim._portable too (their bits were unchanged by it here).
+The two driver pins were recomputed for issue 22: the davis346 sensor's DVS is held in reset
+during its refractory period (changes forgotten) and released with 0.01 ln reset noise, its leak
+rates are lognormal and its leak phases random.
 
 If a deliberate change of the physics moves a pin, recompute it with
 ``python tests/test_pinned_outputs.py`` and say so in the commit message.
@@ -54,8 +57,8 @@ PINS = {
     "reconstruct.sor_rc": "bb63bd2e69e1c08eca1f16872604994330592002ef863103ab74dce4eb97fc6e",
     "reconstruct.direct": "55b8d418c891ccedf23674cd57c5e3f071e5409d1b3fa49f765ae3fc54485712",
     "reconstruct.high_pass": "19e50610e38aec048a5f75ae014603524b2989dad6cf9eb0929393e9ab4bcb29",
-    "driver_one_pose.h5": "8720ace456440600af79dbe773d381fa35ae7856376bfbd22462db3f5b416365",
-    "driver.h5": "4d8aa6bc61e271b024b2e8bcf79d05f4f58344ccd568f7db12a6ec307011fa81",
+    "driver_one_pose.h5": "aabd83056023e628143b5a75a37d1cb0d91193328a2acfed74b47840525551cc",
+    "driver.h5": "2481b11465b882ba0fec2427c8e92cdbaf1820d6c24b42cda6ffc2f0c950f442",
 }
 
 

@@ -14,6 +14,7 @@ chunk_steps = 256              # steps processed per chunk (memory bound)
 frame_rate_hz = 1000.0         # ground-truth frames (0: none)
 aps = false                    # also emulate APS frames (needs the preset's [aps])
 aps_exposure_s = 5e-4
+cold_start = false             # true: the sensor starts as if just switched on (no leak before 1 / rate)
 
 [render]                       # overrides of the scene manifest's [render]
 width = 64
@@ -53,7 +54,7 @@ from gevsim.timebase import TimeGrid
 
 TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
-                  "aps", "aps_exposure_s")
+                  "aps", "aps_exposure_s", "cold_start")
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,7 @@ class EmulationConfig:
     frame_rate_hz: float = TimeGrid.frame_rate_hz
     aps: bool = False
     aps_exposure_s: float = 5e-4
+    cold_start: bool = False  # True: every pixel starts as if just switched on (leak phase 0)
     render: dict = field(default_factory=dict)
     thresholds_ln: tuple[float, ...] = (0.05, 0.1, 0.2)
     hysteresis_ln: float = 0.0
@@ -91,7 +93,7 @@ class EmulationConfig:
         import tomli_w
 
         em = {k: getattr(self, k) for k in ("scene", "sensor", "seed", "step_s", "chunk_steps", "frame_rate_hz",
-                                             "aps", "aps_exposure_s")}
+                                             "aps", "aps_exposure_s", "cold_start")}
         em["emulators"] = list(self.emulators)
         if self.duration_s is not None:
             em["duration_s"] = self.duration_s
@@ -160,6 +162,9 @@ def load_config(path: str | Path) -> EmulationConfig:
     aps = em.get("aps", False)
     if not isinstance(aps, bool):
         r.fail("emulation.aps", f"expected true or false, got {aps!r}")
+    cold_start = em.get("cold_start", False)
+    if not isinstance(cold_start, bool):
+        r.fail("emulation.cold_start", f"expected true or false, got {cold_start!r}")
     grid = TimeGrid.from_section(em, source=src, where="emulation")
     return EmulationConfig(
         scene=scene,
@@ -169,6 +174,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         **asdict(grid),
         aps=aps,
         aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
+        cold_start=cold_start,
         render=dict(render),
         thresholds_ln=tuple(float(t) for t in thresholds),
         hysteresis_ln=float(r.number(grad, "hysteresis_ln", "gradient", 0.0, minimum=0.0)),

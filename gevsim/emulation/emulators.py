@@ -68,7 +68,7 @@ class Emulator:
 
 
 def _dvs(shape, *, config, preset, rng):
-    return BrightnessEmulator(shape, preset.events, rng=rng)
+    return BrightnessEmulator(shape, preset.events, rng=rng, cold_start=config.cold_start)
 
 
 def _dvs_nominal(emulator, preset) -> np.ndarray:
@@ -91,7 +91,7 @@ def _gradient(rc: bool):
 
 def _csdvs(shape, *, config, preset, rng):
     return CenterSurroundEmulator(shape, preset.events, surround_length_px=config.surround_length_px,
-                                  surround_tau_s=config.surround_tau_s, rng=rng)
+                                  surround_tau_s=config.surround_tau_s, rng=rng, cold_start=config.cold_start)
 
 
 def _dvs_frames(shape, *, thresholds: Sequence[float], dvs_params: EventParams, rng: np.random.Generator):

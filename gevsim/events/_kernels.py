@@ -21,6 +21,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from gevsim.pixel._kernels import normal, pixel_bits, stream_key
+
 BLOCK = 1024
 MAX_EVENTS_PER_STEP = 4096  # per pixel; guards against a vanishing threshold
 
@@ -36,12 +38,14 @@ EVENT_TABLE = np.array([[0, -1, 1], [-1, 0, 1], [-1, 1, 0]], dtype=np.int8)
 
 
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _dvs_scan(v_row, ref, v_prev, leak, th_on, th_off, dt, d0, slope, d_end, busy):
+def _dvs_scan(v_row, ref, v_prev, leak, th_on, th_off, last_t, held_after, dt, d0, slope, d_end, busy):
     """Branch-free (vectorised) pass over a run of pixels (all arguments sliced to it) for
     one step: the distance d0 = signal - level at the step start, its slope over the step,
-    the distance at the step end if no event fires, and whether the pixel may fire (its
-    distance reaches a threshold within 1e-9 relative: a superset of the pixels that do).
-    Returns how many may. (Slices rather than offsets: LLVM vectorises this 4x better.)"""
+    the distance at the step end if no event fires, and whether the pixel needs the exact
+    loop: its distance reaches a threshold within 1e-9 relative (a superset of the pixels
+    that fire), or it is still held in reset (refractory) at the step start
+    (``last_t > held_after``). Returns how many need it. (Slices rather than offsets: LLVM
+    vectorises this 4x better.)"""
     m = 0
     for i in range(v_row.shape[0]):
         v0 = v_prev[i]
@@ -51,7 +55,7 @@ def _dvs_scan(v_row, ref, v_prev, leak, th_on, th_off, dt, d0, slope, d_end, bus
         on = th_on[i]
         off = th_off[i]
         tol = 1e-9 * (abs(d) + abs(k) + on + off)
-        f = (d >= on - tol) | (d <= tol - off) | (e >= on - tol) | (e <= tol - off)
+        f = (d >= on - tol) | (d <= tol - off) | (e >= on - tol) | (e <= tol - off) | (last_t[i] >= held_after)
         d0[i] = d
         slope[i] = k
         d_end[i] = e
@@ -80,17 +84,30 @@ def _dvs_commit(v_row, ref, v_prev, d_end):
         v_prev[i] = v1
 
 
+@njit(inline="always")
+def _release(d_hold, reset_sigma, key, p, count):
+    """The distance right after a pixel's change amplifier leaves reset: the held distance
+    minus the reset (kTC, charge injection) noise of that release, a normal deviate keyed by
+    (key, pixel, its event count), so that it depends on neither chunks nor threads."""
+    if reset_sigma > 0.0:
+        return d_hold - reset_sigma * np.float64(normal(pixel_bits(stream_key(key, count, 0), p)))
+    return d_hold
+
+
 @njit(parallel=True, nogil=True, cache=True)
-def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, leak, refractory, px_x, px_y,
-               buf_t, buf_x, buf_y, buf_p, region, order):
+def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_off, leak, refractory,
+               reset_sigma, key, px_x, px_y, buf_t, buf_x, buf_y, buf_p, region, order):
     """DVS: per pixel a memorised level ``ref``; an ON (OFF) event when the signal
     rises (falls) by th_on (th_off) from it, at the linearly interpolated crossing
-    time, not sooner than ``refractory`` after the pixel's previous event; the
-    level is then reset to the signal. ``leak`` (ln/s) lowers the level over
-    time, producing leak (ON) events.
+    time. The change amplifier is then held in reset for ``refractory`` seconds: the
+    level follows the signal and changes during that time are forgotten (Lichtsteiner,
+    Posch & Delbruck 2008; so a ramp of slope k gives events refractory + theta / k apart).
+    On release the level takes a reset error of sigma ``reset_sigma`` (ln). ``leak`` (ln/s)
+    lowers the level over time, producing leak (ON) events. ``count`` (P,) counts each
+    pixel's events (it keys the reset noise).
 
-    Per block and step, a vectorised scan finds the pixels that may fire; the exact
-    crossing loop runs for those only, in pixel order. Block b (pixels b * BLOCK ...)
+    Per block and step, a vectorised scan finds the pixels that may fire or are held; the
+    exact crossing loop runs for those only, in pixel order. Block b (pixels b * BLOCK ...)
     writes its events into its own region of the flat buffers from its resume point (see
     :data:`START`); a pixel whose events of a step do not fit is left untouched (as are
     the pixels after it) and becomes the block's resume point."""
@@ -113,53 +130,43 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, le
             for t in range(t0, T):
                 ta = t_start[t]
                 dt = t_end[t] - ta
+                held_after = ta - refractory if refractory > 0.0 else np.inf
                 first = lo + region[b, RESUME_I] if t == t0 else lo
                 end = hi
                 if _dvs_scan(v[t, first:hi], ref[first:hi], v_prev[first:hi], leak[first:hi], th_on[first:hi],
-                             th_off[first:hi], dt, d0, slope, d_end, busy):
+                             th_off[first:hi], last_t[first:hi], held_after, dt, d0, slope, d_end, busy):
                     for q in range(_compact(busy, hi - first, idx)):
                         i = idx[q]
                         p = first + i
                         n_pixel = n
                         lt = last_t[p]
+                        c = count[p]
                         k = slope[i]
                         d = d0[i]
                         s = 0.0
                         m = 0
                         on, off = th_on[p], th_off[p]
-                        # The distance from a reset level (d = 0) to the next threshold, in steps:
-                        # (on - 0.0) / k, computed once, off the dependency chain of the crossings.
-                        after_reset = on / k if k > 0.0 else (-off / k if k < 0.0 else 0.0)
+                        if lt >= held_after:  # held in reset since an earlier step
+                            ready = (lt + refractory - ta) / dt
+                            if ready >= 1.0:
+                                d_end[i] = 0.0  # still held at the step end: the level is the signal
+                                continue
+                            s = ready
+                            d = _release(0.0, reset_sigma, key, p, c)
                         while m < MAX_EVENTS_PER_STEP:
                             if d >= on:
                                 cross, pol = s, 1
                             elif d <= -off:
                                 cross, pol = s, -1
                             elif k > 0.0:
-                                cross, pol = s + (after_reset if d == 0.0 else (on - d) / k), 1
+                                cross, pol = s + (on - d) / k, 1
                             elif k < 0.0:
-                                cross, pol = s + (after_reset if d == 0.0 else (-off - d) / k), -1
+                                cross, pol = s + (-off - d) / k, -1
                             else:
                                 break
                             if cross > 1.0:
                                 break
-                            se = cross
-                            if refractory > 0.0:
-                                ready = (lt + refractory - ta) / dt
-                                if ready > se:
-                                    # Refractory: fire when it ends, if still beyond the threshold.
-                                    se = ready
-                                    if se > 1.0:
-                                        break
-                                    de = d + k * (se - s)
-                                    if (pol == 1 and de < on) or (pol == -1 and de > -off):
-                                        # Fell back inside the thresholds while refractory: no event;
-                                        # look on from the end of the refractory period.
-                                        d = de
-                                        s = se
-                                        m += 1
-                                        continue
-                            te = ta + se * dt
+                            te = ta + cross * dt
                             if n == cap:
                                 stopped = True
                                 break
@@ -168,10 +175,15 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, le
                             buf_y[base + n] = px_y[p]
                             buf_p[base + n] = pol > 0
                             n += 1
+                            c += 1
                             lt = te
-                            d = 0.0
-                            s = se
                             m += 1
+                            s = cross + refractory / dt if refractory > 0.0 else cross
+                            if s >= 1.0:  # held in reset past the step end
+                                d = 0.0
+                                s = 1.0
+                                break
+                            d = _release(0.0, reset_sigma, key, p, c)
                         if stopped:  # this pixel's step and the rest are redone on resumption
                             n = n_pixel
                             region[b, RESUME_T] = t
@@ -180,6 +192,7 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, th_on, th_off, le
                             break
                         d_end[i] = d + k * (1.0 - s)
                         last_t[p] = lt
+                        count[p] = c
                 _dvs_commit(v[t, first:end], ref[first:end], v_prev[first:end], d_end)
                 if stopped:
                     break

@@ -2,7 +2,8 @@
 
 Per pixel a memorised level; an ON (OFF) event when the signal rises (falls)
 by the ON (OFF) threshold from it. Thresholds carry per-pixel Gaussian
-mismatch, events respect a refractory period, several may occur in one step,
+mismatch; after an event the change amplifier is held in reset for the refractory
+period and released with a reset error; several events may occur in one step,
 and timestamps are the linearly interpolated crossing times inside the step
 (Lichtsteiner, Posch & Delbruck 2008). Leak events come from the memorised
 level drifting down at ``leak_rate_hz`` thresholds per second (with per-pixel
@@ -11,11 +12,13 @@ spread), as in v2e (Hu, Liu & Delbruck 2021).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from gevsim import _portable as pm
 from gevsim.events import _kernels
 from gevsim.events._runner import EventBlocks, SampledSignal
 from gevsim.events.types import BRIGHTNESS_DTYPE, empty
@@ -31,19 +34,33 @@ def per_pixel_thresholds(shape: Sequence[int], params: EventParams, *,
     return np.maximum(on, 0.05 * params.threshold_on_ln), np.maximum(off, 0.05 * params.threshold_off_ln)
 
 
+def leak_rates(shape: Sequence[int], params: EventParams, *, rng: np.random.Generator) -> np.ndarray:
+    """Per-pixel leak event rates (Hz): lognormal with mean ``leak_rate_hz`` and relative sigma
+    ``leak_rate_spread`` (a clipped normal left 2.3 % of pixels at 0 for a spread of 0.5)."""
+    z = rng.standard_normal(shape)
+    sigma = math.sqrt(float(pm.log(1.0 + params.leak_rate_spread * params.leak_rate_spread)))
+    return params.leak_rate_hz * pm.exp(sigma * z - 0.5 * sigma * sigma)
+
+
 class BrightnessEmulator:
     """DVS emulator over an (H, W) pixel array; state is kept across chunks.
 
     Parameters
     ----------
     shape : (H, W).
-    params : thresholds, mismatch, refractory period and leak (a preset's ``events``).
-    rng : draws the fixed patterns (threshold mismatch, leak rates).
+    params : thresholds, mismatch, refractory period, reset noise and leak (a preset's ``events``).
+    rng : draws the fixed patterns (threshold mismatch, leak rates), the leak phases and the
+        key of the reset noise.
+    cold_start : False (default): a sensor that has been running, each leaking pixel's leak
+        accumulator at a uniformly random phase (its level between 0 and one ON threshold below
+        the first sample), so leak events come at their steady rate from the start. True: every
+        level starts at the first sample (no leak event before 1 / leak rate).
     """
 
     dtype = BRIGHTNESS_DTYPE
 
-    def __init__(self, shape: Sequence[int], params: EventParams, *, rng: np.random.Generator):
+    def __init__(self, shape: Sequence[int], params: EventParams, *, rng: np.random.Generator,
+                 cold_start: bool = False):
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         self.clock = SampledSignal(shape)
@@ -52,12 +69,15 @@ class BrightnessEmulator:
         on, off = per_pixel_thresholds(self.shape, params, rng=rng)
         self.threshold_on_ln = on.ravel()
         self.threshold_off_ln = off.ravel()
-        rate = params.leak_rate_hz * np.maximum(0.0, 1.0 + params.leak_rate_spread * rng.standard_normal(self.shape))
-        self.leak_ln_per_s = (rate.ravel() * self.threshold_on_ln).astype(np.float64)
+        self.leak_ln_per_s = (leak_rates(self.shape, params, rng=rng).ravel() * self.threshold_on_ln)
         n = self.threshold_on_ln.size
+        phase = rng.random(n)  # drawn in either mode, so that the key below does not depend on it
+        self.leak_phase = np.zeros(n) if cold_start else np.where(self.leak_ln_per_s > 0.0, phase, 0.0)
+        self.reset_key = np.uint64(rng.integers(0, 2**63, dtype=np.int64))
         self.ref = np.zeros(n)
         self.v_prev = np.zeros(n)
         self.last_t = np.full(n, -np.inf)
+        self.count = np.zeros(n, np.int64)
         self._px_y, self._px_x = (a.ravel().astype(np.int16) for a in np.indices(self.shape))
         self.blocks = EventBlocks((n + _kernels.BLOCK - 1) // _kernels.BLOCK, dtype=self.dtype,
                                   first_per_step=_kernels.BLOCK / 8, min_free=_kernels.MAX_EVENTS_PER_STEP)
@@ -71,20 +91,21 @@ class BrightnessEmulator:
         v, t_start, t_end, first = self.clock.steps(signal, t_s, name="signal")
         if len(t_end) == 0:
             return empty(self.dtype)
-        ref, v_prev, last_t = self.ref.copy(), self.v_prev.copy(), self.last_t.copy()
+        ref, v_prev, last_t, count = self.ref.copy(), self.v_prev.copy(), self.last_t.copy(), self.count.copy()
         if first:
-            ref = v[0].reshape(-1).astype(np.float64)
-            v_prev = ref.copy()
+            v_prev = v[0].reshape(-1).astype(np.float64)
+            ref = v_prev - self.leak_phase * self.threshold_on_ln
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
         flat = v.reshape(len(t_end), self.shape[0] * self.shape[1])
         p = self.params
 
         def kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
-            _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end, ref, v_prev, last_t,
+            _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end, ref, v_prev, last_t, count,
                                 self.threshold_on_ln, self.threshold_off_ln, self.leak_ln_per_s, p.refractory_s,
-                                self._px_x, self._px_y, buf_t, buf_x, buf_y, buf_p, region, order)
+                                p.reset_noise_ln, self.reset_key, self._px_x, self._px_y, buf_t, buf_x, buf_y,
+                                buf_p, region, order)
 
         events = self.blocks.collect(kernel, t_start, t_end)
-        self.ref, self.v_prev, self.last_t = ref, v_prev, last_t
+        self.ref, self.v_prev, self.last_t, self.count = ref, v_prev, last_t, count
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
         return events

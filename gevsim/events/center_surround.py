@@ -156,10 +156,10 @@ class CenterSurroundEmulator:
     """
 
     def __init__(self, shape: Sequence[int], params: EventParams, *, surround_length_px: float = 2.0,
-                 surround_tau_s: float = 1e-3, rng: np.random.Generator):
+                 surround_tau_s: float = 1e-3, rng: np.random.Generator, cold_start: bool = False):
         real(surround_length_px, "surround_length_px", low=0.0, low_open=True)
         real(surround_tau_s, "surround_tau_s", low=0.0)
-        self.dvs = BrightnessEmulator(shape, params, rng=rng)
+        self.dvs = BrightnessEmulator(shape, params, rng=rng, cold_start=cold_start)
         self.shape = self.dvs.shape
         self.surround_tau_s = float(surround_tau_s)
         self.c = float(surround_length_px) * float(surround_length_px)

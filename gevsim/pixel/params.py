@@ -128,8 +128,12 @@ class EventParams(FromTable):
     ----------
     threshold_on_ln, threshold_off_ln : contrast thresholds in ln units.
     threshold_mismatch_ln : per-comparator fixed-pattern sigma of the thresholds (ln units).
-    refractory_s : dead time after an event.
-    leak_rate_hz : mean rate of leak (ON) events per pixel; leak_rate_spread its relative sigma.
+    refractory_s : time the change amplifier is held in reset after an event (changes during it
+        are forgotten, Lichtsteiner et al. 2008).
+    reset_noise_ln : sigma (ln units) of the level's error at each release from reset (kTC and
+        charge-injection noise; IEBCS redraws a threshold of sigma 0.01-0.02 after every event).
+    leak_rate_hz : mean rate of leak (ON) events per pixel; leak_rate_spread its relative sigma
+        (lognormal, so that no pixel's rate is clipped to zero).
     """
 
     TABLE = "events"
@@ -138,12 +142,13 @@ class EventParams(FromTable):
     threshold_off_ln: float = 0.2
     threshold_mismatch_ln: float = 0.0
     refractory_s: float = 0.0
+    reset_noise_ln: float = 0.0
     leak_rate_hz: float = 0.0
     leak_rate_spread: float = 0.0
 
     def __post_init__(self):
         real(self.threshold_on_ln, "threshold_on_ln", low=0, low_open=True)
         real(self.threshold_off_ln, "threshold_off_ln", low=0, low_open=True)
-        for name in ("threshold_mismatch_ln", "refractory_s", "leak_rate_hz", "leak_rate_spread"):
+        for name in ("threshold_mismatch_ln", "refractory_s", "reset_noise_ln", "leak_rate_hz", "leak_rate_spread"):
             real(getattr(self, name), name, low=0)
 
