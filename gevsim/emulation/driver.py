@@ -187,7 +187,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     h, w = m.render.height, m.render.width
     seeds = np.random.SeedSequence(config.seed).spawn(SEED_SLOTS)
     pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise,
-                       rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]))
+                       rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]), cold_start=config.cold_start)
+    start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s)
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}
@@ -204,7 +205,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,
              "flicker": flicker, "noise": noise, "variant": setup.variant.variant,
              "scene_toml": resolved_config(m), "emulators": list(emulators),
-             "render_noise_json": json.dumps(setup.render_quality, default=float, sort_keys=True)}
+             "render_noise_json": json.dumps(setup.render_quality, default=float, sort_keys=True),
+             "start": start_state}
     pixel_s = 0.0
     event_s = {n: 0.0 for n in emulators}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
@@ -243,6 +245,46 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
         render_s=render_s, pixel_s=pixel_s, event_s=event_s, render_noise=setup.render_quality,
         pixel_steps_per_s=pixel_steps / max(pixel_s, 1e-12), total_s=time.perf_counter() - start,
     )
+
+
+#: The longest lamp period for which a run starts at the periodic steady state (one period is
+#: emulated three times, noise-free, to solve for it).
+MAX_SETTLE_PERIOD_S = 0.1
+
+
+def common_period_s(waveforms) -> float | None:
+    """The shortest time after which every waveform repeats (None: one is not periodic or the
+    common period exceeds :data:`MAX_SETTLE_PERIOD_S`); 0.0 when all are constant."""
+    from gevsim.illumination import DC
+
+    periods = [wf.period_s for wf in waveforms if not isinstance(wf, DC)]
+    periods = [p for p in periods if p is not None] if all(p is not None for p in periods) else None
+    if periods is None:
+        return None
+    if not periods:
+        return 0.0
+    longest = max(periods)
+    for k in range(1, int(MAX_SETTLE_PERIOD_S / longest) + 1):
+        total = k * longest
+        if all(abs(total / p - round(total / p)) < 1e-6 for p in periods):
+            return total
+    return None
+
+
+def settle(pr: Photoreceptor, setup: Setup, step_s: float) -> str:
+    """Start ``pr`` at the periodic steady state of the scene's lamps (a sensor that has been running);
+    returns what was done, for the file's ``start`` attribute."""
+    period = common_period_s(setup.waveforms)
+    if period is None:
+        return "settled on the first sample: the lamps have no common period <= 0.1 s"
+    if period == 0.0:
+        period = step_s  # constant light: one step of it is its period
+    n = max(1, int(np.ceil(period / step_s - 1e-9)))
+    dt = period / n
+    t_end = dt * np.arange(1, n + 1)
+    weights = weights_at(setup.waveforms, t_end - dt, average_over_s=dt)
+    pr.settle(photocurrent_at(setup, t_end - 0.5 * dt, weights), np.full(n, dt))
+    return f"periodic steady state of the lamps ({period * 1e3:.6g} ms, {n} steps)"
 
 
 def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):

@@ -23,7 +23,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from gevsim._portable import exp_scalar
+from gevsim._portable import exp_scalar, expm1_scalar
+from gevsim.pixel._cascade import read_coefficients, smooth_row
 from gevsim.pixel._fastmath import expf, logf
 
 BLOCK = 1024  # pixels per parallel work item (fixed, so results do not depend on threads)
@@ -190,43 +191,19 @@ def _shot_noise(shot_q, fc, itot, a, z):
     return np.float64(np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a))) * z)
 
 
-@njit(inline="always")
-def _second_pole(u, v2, fc, a, e1, d, b2, tau2):
-    """The second pole's new state, exact for held input: w' = b w + c e1 with
-    c = tau1 (a - b) / (tau1 - tau2)."""
-    tau1 = 1.0 / (_TWO_PI * fc)
-    near = abs(tau1 - tau2) <= 1e-9 * tau2
-    c = (d / tau2 * b2) if near else (tau1 * (a - b2) / (tau1 - tau2))
-    return u + b2 * (v2 - u) + c * e1
-
-
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _photoreceptor_row(cur, gain, dark, v1, v2, out, z, d, fc_per_a, fc_max, filt, shot_q, has2, b2, tau2):
-    """One step for a contiguous run of pixels: branch-free so that LLVM vectorises it.
-    z holds the pixels' shot-noise deviates (read only when shot_q > 0). One loop per
-    combination of the flags, so that none computes what it discards. Filter states stay in
-    double precision."""
+def _photoreceptor_row(cur, gain, dark, v1, out, z, d, fc_per_a, fc_max, filt, shot_q):
+    """One step of the photoreceptor without an output pole, for a contiguous run of pixels:
+    branch-free so that LLVM vectorises it. z holds the pixels' shot-noise deviates (read only
+    when shot_q > 0). One loop per case, so that none computes what it discards. Filter states
+    stay in double precision. (With an output pole: :func:`gevsim.pixel._cascade.smooth_row`.)"""
     n = cur.shape[0]
-    if shot_q > 0.0 and has2:
-        for p in range(n):
-            itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
-            v1[p] = u + a * e1 + _shot_noise(shot_q, fc, itot, a, z[p])
-            y2 = _second_pole(u, v2[p], fc, a, e1, d, b2, tau2)
-            v2[p] = y2
-            out[p] = np.float32(y2)
-    elif shot_q > 0.0:
+    if shot_q > 0.0:
         for p in range(n):
             itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
             x = u + a * e1 + _shot_noise(shot_q, fc, itot, a, z[p])
             v1[p] = x
             out[p] = np.float32(x)
-    elif has2:
-        for p in range(n):
-            itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
-            v1[p] = u + a * e1
-            y2 = _second_pole(u, v2[p], fc, a, e1, d, b2, tau2)
-            v2[p] = y2
-            out[p] = np.float32(y2)
     else:
         for p in range(n):
             itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
@@ -249,17 +226,20 @@ def _ou_row(state, out, z, alpha, scale):
 
 @njit(parallel=True, nogil=True, cache=True)
 def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0,
-                  fc_ref, i_ref, fc_max, f2, shot_q, out):
+                  fc_ref, i_ref, fc_max, f2, shot_q, n_read, out):
     """Advance the photoreceptor over T steps of held photocurrent.
 
     current (T, P) photocurrent (A) held over each step of duration dt (T,) s,
     finite and with current * gain + dark > 0 (checked by the caller);
     gain, dark (P,) fixed patterns; v1, v2 (P,) filter states in ln units;
-    fn (M, P) states of Ornstein-Uhlenbeck noise added to the output
-    (band-limited read noise, 1/f poles) with corner frequencies fn_hz (M,) and
+    fn (M, P) states of Ornstein-Uhlenbeck noise (band-limited read noise, the first
+    ``n_read`` (0 or 1) of them, then 1/f poles) with corner frequencies fn_hz (M,) and
     variances fn_var (M,); all updated in place. out (T, P) receives the output
-    in ln units. fc_ref <= 0 means infinite bandwidth (no filter); f2 <= 0 no
-    second pole; shot_q = elementary charge * pi to enable shot noise, else 0.
+    in ln units. fc_ref <= 0 means infinite bandwidth (no filter); shot_q = elementary
+    charge * pi to enable shot noise, else 0. f2 > 0: the output pole (source follower,
+    change amplifier input), through which the shot and read noise pass after their own
+    poles (:mod:`gevsim.pixel._cascade`: smooth, exact for any step); f2 <= 0: none, and the
+    read noise is added to the output. 1/f poles are added to the output in either case.
     The noise of pixel ``j`` hashes ``stream_key + j * GOLDEN`` whatever block it is in, so
     it depends on neither the blocks nor the threads.
     """
@@ -270,34 +250,58 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
     else:
         fc_per_a, fcm, filt = 0.0, 0.0, 0.0  # no filter: a = 0
     has2 = f2 > 0
-    tau2 = 1.0 / (_TWO_PI * f2) if has2 else 1.0
+    smooth_read = has2 and n_read > 0
+    beta = _TWO_PI * f2
     fn_alpha = np.empty((T, M))
     fn_scale = np.empty((T, M))
-    keys = np.empty((T, M + 1), np.uint64)
+    keys = np.empty((T, M + 3), np.uint64)
+    steps = np.empty((T, 2))  # b2, 1 - b2 of the output pole
+    read = np.zeros((T, 6))
     for t in range(T):
         keys[t, 0] = stream_key(key, step0 + t, 1)
+        keys[t, M + 1] = stream_key(key, step0 + t, 2)
+        keys[t, M + 2] = stream_key(key, step0 + t, 99)
         for m in range(M):
             alpha = exp_scalar(-_TWO_PI * fn_hz[m] * dt[t])
             fn_alpha[t, m] = alpha
             fn_scale[t, m] = math.sqrt(fn_var[m] * (1.0 - alpha * alpha))
             keys[t, m + 1] = stream_key(key, step0 + t, 3 + m)
+        eb2 = -expm1_scalar(-beta * dt[t]) if has2 else 1.0
+        steps[t, 0], steps[t, 1] = 1.0 - eb2, eb2
+        if smooth_read:
+            a_r, c_det, s1, r, s2, c = read_coefficients(fn_var[0], _TWO_PI * fn_hz[0], beta, dt[t])
+            read[t, 0], read[t, 1], read[t, 2], read[t, 3], read[t, 4], read[t, 5] = a_r, c_det, s1, r, s2, c
     nblocks = (P + BLOCK - 1) // BLOCK
     shot = shot_q > 0
+    first_ou = n_read if smooth_read else 0
     for b in prange(nblocks):
         lo = b * BLOCK
         hi = min(P, lo + BLOCK)
         z = np.empty(hi - lo, np.float32)
+        z2 = np.empty(hi - lo, np.float32)
+        zr = np.empty(hi - lo, np.float32)
+        zr2 = np.empty(hi - lo, np.float32)
         sp = np.empty(2 * (hi - lo), np.float32)
         idx = np.empty(hi - lo, np.int64)
         for t in range(T):
             d = dt[t]
-            b2 = exp_scalar(-_TWO_PI * f2 * d) if has2 else 0.0
+            b2 = steps[t, 0]
             # Pixel lo + i of a stream hashes key + (lo + i) GOLDEN.
             if shot:
                 normals_row(keys[t, 0] + np.uint64(lo) * GOLDEN, z, sp, idx)
-            _photoreceptor_row(current[t, lo:hi], gain[lo:hi], dark[lo:hi], v1[lo:hi], v2[lo:hi], out[t, lo:hi],
-                               z, d, fc_per_a, fcm, filt, shot_q, has2, b2, tau2)
-            for m in range(M):
+            if has2:
+                if shot:
+                    normals_row(keys[t, M + 1] + np.uint64(lo) * GOLDEN, z2, sp, idx)
+                if smooth_read:
+                    normals_row(keys[t, 1] + np.uint64(lo) * GOLDEN, zr, sp, idx)
+                    normals_row(keys[t, M + 2] + np.uint64(lo) * GOLDEN, zr2, sp, idx)
+                r_coef = (read[t, 0], read[t, 1], read[t, 2], read[t, 3], read[t, 4], read[t, 5])
+                smooth_row(current[t, lo:hi], gain[lo:hi], dark[lo:hi], v1[lo:hi], v2[lo:hi],
+                           fn[0, lo:hi] if smooth_read else v2[lo:hi], out[t, lo:hi], z, z2, zr, zr2, d, fc_per_a,
+                           fcm, filt, shot_q, beta, b2, steps[t, 1], smooth_read, r_coef)
+            else:
+                _photoreceptor_row(current[t, lo:hi], gain[lo:hi], dark[lo:hi], v1[lo:hi], out[t, lo:hi], z, d,
+                                   fc_per_a, fcm, filt, shot_q)
+            for m in range(first_ou, M):
                 normals_row(keys[t, m + 1] + np.uint64(lo) * GOLDEN, z, sp, idx)
                 _ou_row(fn[m, lo:hi], out[t, lo:hi], z, fn_alpha[t, m], fn_scale[t, m])
-    return 0

@@ -34,13 +34,17 @@ class Photoreceptor:
     ----------
     shape : (H, W).
     params, noise : the photoreceptor and noise parameters (see a sensor preset).
-    rng : draws the fixed patterns and the key of the temporal noise.
+    rng : draws the fixed patterns, the key of the temporal noise and the noise's start.
     t0_s : start time; the first step ends at the first time given to :meth:`process`.
+    cold_start : False (default): the noise starts stationary (a sensor that has been running:
+        shot and read noise drawn from their stationary joint law through the output pole);
+        True: the shot noise starts at zero (the behaviour before issue 22). Either way the
+        filters start settled on the first sample's photocurrent.
     """
 
     def __init__(self, shape: Sequence[int], *, params: PhotoreceptorParams, noise: NoiseParams,
                  rng: np.random.Generator,
-                 t0_s: float = 0.0):
+                 t0_s: float = 0.0, cold_start: bool = False):
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         if len(shape) != 2 or min(shape) < 1:
@@ -57,6 +61,9 @@ class Photoreceptor:
         self.fn_hz, self.fn_var = output_noise_poles(noise, params.volts_per_ln)
         n = self.gain.size
         self.fn = (np.sqrt(self.fn_var)[:, None] * rng.standard_normal((len(self.fn_hz), n))).astype(np.float64)
+        self.n_read = 1 if noise.read_noise_v > 0 else 0  # fn[0] is the read noise
+        self.start_z = rng.standard_normal((3, n))  # the noise's stationary start (drawn in either mode)
+        self.cold_start = bool(cold_start)
         self.v1 = np.zeros(n)
         self.v2 = np.zeros(n)
         self.t_s = float(t0_s)
@@ -75,6 +82,73 @@ class Photoreceptor:
         """Noise-free settled output (ln units) for a constant photocurrent (H, W)."""
         i = np.asarray(photocurrent_a, float).reshape(-1)
         return pm.log(i * self.gain + self.dark_a).reshape(self.shape)
+
+    def settle(self, photocurrent_a: ArrayLike, dt_s: ArrayLike) -> None:
+        """Start at the periodic steady state of a light that repeats ``photocurrent_a`` (T, H, W),
+        each sample held over the step ``dt_s`` (T,): a sensor that has been running under it.
+
+        The noise-free filters are affine in their start, so one period run from three starts gives
+        each pixel's map (v1, v2) -> (A v1 + c1, B v1 + C v2 + c2) and its fixed point, exactly (no
+        warm-up to wait out, however slow the dim pixels). The noise then starts stationary unless
+        ``cold_start``. Call before the first :meth:`process`.
+        """
+        if self.started:
+            raise ValueError("settle() must come before the first process()")
+        dt = np.asarray(dt_s, dtype=np.float64).reshape(-1)
+        flat = np.ascontiguousarray(photocurrent_a, dtype=np.float64).reshape(len(dt), -1)
+        if flat.shape[1] != self.gain.size or not np.all(dt > 0):
+            raise ValueError(f"settle needs photocurrent (T, {self.shape[0]}, {self.shape[1]}) and steps > 0")
+        if count_invalid(flat, nonnegative=True):
+            raise ValueError("settle: photocurrent must be finite and >= 0")
+        p = self.params
+        fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
+        n = self.gain.size
+
+        def period(v1: np.ndarray, v2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            v1, v2 = v1.copy(), v2.copy()
+            _kernels.photoreceptor(
+                flat, dt, self.gain, self.dark_a, v1, v2, np.zeros((0, n)), np.zeros(0), np.zeros(0),
+                np.uint64(self.key), 0, fc_ref, p.cutoff_ref_photocurrent_a,
+                p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf, p.second_pole_hz or 0.0, 0.0, 0,
+                np.empty(flat.shape, np.float32))
+            return v1, v2
+
+        first = flat[0].astype(np.float64) * self.gain + self.dark_a
+        u0 = pm.log(first)
+        c1, c2 = period(u0, u0)
+        a1, a2 = period(u0 + 1.0, u0)
+        w1 = (c1 - u0) / (1.0 - (a1 - c1))  # fixed point, as a deviation from u0
+        if p.second_pole_hz is not None:
+            _, b2 = period(u0, u0 + 1.0)
+            w2 = ((a2 - c2) * w1 + (c2 - u0)) / (1.0 - (b2 - c2))
+        else:
+            w2 = w1
+        self.v1, self.v2 = u0 + w1, u0 + w2
+        if not self.cold_start:
+            self._stationary_noise(first, self.v1, self.v2, self.fn)
+        self.started = True
+
+    def _stationary_noise(self, itot: np.ndarray, v1: np.ndarray, v2: np.ndarray, fn: np.ndarray) -> None:
+        """Add to the settled states v1 (photoreceptor) and v2 (output) a draw of the stationary
+        shot noise at total photocurrent ``itot``, and to v2 the output pole's share of the read
+        noise already in ``fn[0]`` (:mod:`gevsim.pixel._cascade`), in place."""
+        p = self.params
+        has2 = p.second_pole_hz is not None
+        beta = 2.0 * math.pi * p.second_pole_hz if has2 else math.inf
+        if self.noise.shot_noise:
+            fc = p.cutoff_at(itot)  # as the kernel: proportional to the total current, capped
+            var = math.pi * elementary_charge * fc / itot
+            alpha = 2.0 * math.pi * fc
+            xn = np.sqrt(var) * self.start_z[0]
+            v1 += xn
+            if has2:
+                v2 += beta / (alpha + beta) * xn + np.sqrt(var * alpha * beta) / (alpha + beta) * self.start_z[1]
+            else:
+                v2 += xn
+        if has2 and self.n_read:
+            alpha = 2.0 * math.pi * self.fn_hz[0]
+            s = math.sqrt(self.fn_var[0])
+            v2 += beta / (alpha + beta) * fn[0] + s * math.sqrt(alpha * beta) / (alpha + beta) * self.start_z[2]
 
     def process(self, photocurrent_a: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Advance over T steps and return the output (T, H, W) float32, in ln units.
@@ -97,6 +171,8 @@ class Photoreceptor:
             if np.all(np.isfinite(first)) and np.all(first > 0):  # else the check below reports them
                 v1 = pm.log(first)
                 v2 = v1.copy()
+                if not self.cold_start:
+                    self._stationary_noise(first, v1, v2, fn)
         bad = count_invalid(flat, nonnegative=True)
         if not bad and np.any(self.dark_a <= 0):
             dark_free = self.dark_a <= 0
@@ -109,7 +185,7 @@ class Photoreceptor:
         _kernels.photoreceptor(
             flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint64(self.key), self.step,
             fc_ref, p.cutoff_ref_photocurrent_a, p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf,
-            p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0,
+            p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0, self.n_read,
             out,
         )
         self.v1, self.v2, self.fn = v1, v2, fn
