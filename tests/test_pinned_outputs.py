@@ -19,7 +19,8 @@ The synthetic inputs below use gevsim._portable too (their bits were unchanged b
 The two driver pins were recomputed for issue 22: the davis346 sensor's DVS is held in reset
 during its refractory period (changes forgotten) and released with 0.01 ln reset noise, its leak
 rates are lognormal and its leak phases random; then again for its output pole (2 kHz, every noise
-through two poles) and its start at the lamps' periodic steady state with stationary noise.
+through two poles) and its start at the lamps' periodic steady state with stationary noise, and
+steps split at the PWM lamp's jumps.
 
 If a deliberate change of the physics moves a pin, recompute it with
 ``python tests/test_pinned_outputs.py`` and say so in the commit message.

@@ -220,9 +220,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
         chunks = range(0, n_steps, config.chunk_steps)
         for c, a in enumerate(chunks):
             b = min(a + config.chunk_steps, n_steps)
-            t_end = t_end_all[a:b]
-            weights = weights_at(setup.waveforms, t_end - config.step_s, average_over_s=config.step_s)
-            current = photocurrent_at(setup, t_end - 0.5 * config.step_s, weights)
+            t_end = step_grid(setup.waveforms, t_end_all[a] - config.step_s, t_end_all[a:b])
+            current = held_photocurrent(setup, t_end_all[a] - config.step_s, t_end)
             tick = time.perf_counter()
             v = pr.process(current, t_end)
             pixel_s += time.perf_counter() - tick
@@ -252,15 +251,15 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
 MAX_SETTLE_PERIOD_S = 0.1
 
 
-def common_period_s(waveforms) -> float | None:
+def common_period_s(waveforms: tuple | list) -> float | None:
     """The shortest time after which every waveform repeats (None: one is not periodic or the
     common period exceeds :data:`MAX_SETTLE_PERIOD_S`); 0.0 when all are constant."""
     from gevsim.illumination import DC
 
-    periods = [wf.period_s for wf in waveforms if not isinstance(wf, DC)]
-    periods = [p for p in periods if p is not None] if all(p is not None for p in periods) else None
-    if periods is None:
+    found = [wf.period_s for wf in waveforms if not isinstance(wf, DC)]
+    if any(p is None for p in found):
         return None
+    periods = [float(p) for p in found]
     if not periods:
         return 0.0
     longest = max(periods)
@@ -280,11 +279,33 @@ def settle(pr: Photoreceptor, setup: Setup, step_s: float) -> str:
     if period == 0.0:
         period = step_s  # constant light: one step of it is its period
     n = max(1, int(np.ceil(period / step_s - 1e-9)))
-    dt = period / n
-    t_end = dt * np.arange(1, n + 1)
-    weights = weights_at(setup.waveforms, t_end - dt, average_over_s=dt)
-    pr.settle(photocurrent_at(setup, t_end - 0.5 * dt, weights), np.full(n, dt))
-    return f"periodic steady state of the lamps ({period * 1e3:.6g} ms, {n} steps)"
+    t_end = step_grid(setup.waveforms, 0.0, period / n * np.arange(1, n + 1))
+    pr.settle(held_photocurrent(setup, 0.0, t_end), np.diff(t_end, prepend=0.0))
+    return f"periodic steady state of the lamps ({period * 1e3:.6g} ms, {len(t_end)} steps)"
+
+
+def step_grid(waveforms: tuple | list, t_start: float, t_end: np.ndarray) -> np.ndarray:
+    """The step ends ``t_end`` with every waveform breakpoint inside them added (a lamp's jump is
+    then at a step boundary, so holding each step's mean light is exact for piecewise-constant
+    light); breakpoints within 1 ns of a step end are dropped."""
+    lo, hi = float(t_start), float(t_end[-1])
+    extra = np.concatenate([wf.breakpoints_s(lo, hi) for wf in waveforms] + [np.empty(0)])
+    if extra.size == 0:
+        return t_end
+    extra = np.unique(extra)
+    near = np.searchsorted(t_end, extra)
+    gap = np.minimum(np.abs(extra - t_end[np.minimum(near, len(t_end) - 1)]),
+                     np.abs(extra - t_end[np.maximum(near - 1, 0)]))
+    extra = extra[(gap > 1e-9) & (extra - lo > 1e-9)]
+    return np.union1d(t_end, extra)
+
+
+def held_photocurrent(setup: Setup, t_start: float, t_end: np.ndarray) -> np.ndarray:
+    """Photocurrent (T, H, W) held over each step (t_end[k - 1], t_end[k]]: the waveforms' exact
+    mean over the step, the poses at its middle."""
+    starts = np.r_[t_start, t_end[:-1]]
+    dt = t_end - starts
+    return photocurrent_at(setup, starts + 0.5 * dt, weights_at(setup.waveforms, starts, average_over_s=dt))
 
 
 def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):

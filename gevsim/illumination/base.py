@@ -86,6 +86,15 @@ class Waveform(ABC):
         """Exact ``(min, max)`` over all time where cheap, else ``None``."""
         return None
 
+    def breakpoints_s(self, t_start: float, t_end: float) -> np.ndarray:
+        """Times in ``(t_start, t_end)`` where the waveform jumps or its slope changes (sorted).
+
+        A pixel model that holds each step's mean light blurs a jump inside a step into an
+        intermediate level, at which a photoreceptor whose bandwidth follows the light moves
+        differently (so the answer would depend on the step and on the lamp phase); the driver
+        splits steps at these times. Smooth waveforms have none."""
+        return np.empty(0)
+
     def constant(self) -> Waveform:
         """The DC waveform of the same mean, for counterfactual no-flicker runs."""
         from .basic import DC

@@ -148,6 +148,15 @@ class PWM(PeriodicWaveform):
     def __call__(self, t: Any) -> np.ndarray:
         return self._shape(self._phase(as_time(t)))
 
+    def breakpoints_s(self, t_start: float, t_end: float) -> np.ndarray:
+        """The corners of each period's trapezoid (rise start, peak, fall start, fall end)."""
+        p = self.period_s
+        corners = np.unique(self._shape.x[:-1])
+        k0 = math.floor((t_start - self.phase_s) / p)
+        k1 = math.floor((t_end - self.phase_s) / p)
+        t = (self.phase_s + p * np.arange(k0, k1 + 1)[:, None] + corners[None, :]).ravel()
+        return np.unique(t[(t > t_start) & (t < t_end)])
+
     def _cum_one(self, r: np.ndarray) -> np.ndarray:
         return self._shape.integral_from_start(r)
 

@@ -134,7 +134,7 @@ class Photoreceptor:
         noise already in ``fn[0]`` (:mod:`gevsim.pixel._cascade`), in place."""
         p = self.params
         has2 = p.second_pole_hz is not None
-        beta = 2.0 * math.pi * p.second_pole_hz if has2 else math.inf
+        beta = 2.0 * math.pi * p.second_pole_hz if p.second_pole_hz is not None else math.inf
         if self.noise.shot_noise:
             fc = p.cutoff_at(itot)  # as the kernel: proportional to the total current, capped
             var = math.pi * elementary_charge * fc / itot

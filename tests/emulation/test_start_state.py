@@ -1,0 +1,68 @@
+"""A sensor that has been running: flicker-induced rates do not depend on the lamp phase at which
+a run starts, nor on the step (issue 22). Before, a card under a 500 Hz PWM panel gave 0 DVS events
+with lamp phase 0 and 823 ON / 0 OFF with phase 0.7 ms (the photoreceptor started at the first
+sample, not at the periodic steady state)."""
+
+from __future__ import annotations
+
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gevsim.emulation import EmulationConfig, run
+from gevsim.emulation.driver import Setup, common_period_s, step_grid
+from gevsim.illumination import from_spec
+from gevsim.io import EventReader
+from gevsim.pixel import load_preset
+from gevsim.render import load
+
+DATA = Path(__file__).parents[1] / "data"
+PERIOD_S = 2e-3
+
+
+def dvs_counts(tmp_path, *, phase_s: float, cold: bool, step_s: float = 2e-5) -> tuple[int, int, str]:
+    """ON and OFF events of a 20 ms noise-free davis346 run under a 500 Hz, 30 % PWM lamp dimming to 30 %."""
+    manifest = load(DATA / "card.toml")
+    h, w = manifest.render.height, manifest.render.width
+    x = np.arange(w)[None, :] * np.ones((h, 1))
+    basis = 2e-10 * (1.0 + 0.8 * (x > w // 2))
+    lamp = from_spec({"type": "pwm", "frequency_hz": 1 / PERIOD_S, "duty": 0.3, "low_level": 0.3, "phase_s": phase_s})
+    config = EmulationConfig(scene=str(DATA / "card.toml"), sensor="davis346", seed=7, duration_s=0.02, step_s=step_s,
+                             emulators=("dvs",), frame_rate_hz=0.0, cold_start=cold)
+    setup = Setup(manifest=manifest, preset=load_preset("davis346"), basis_times_s=np.array([0.0]),
+                  current_basis=basis[None, None], waveforms=(lamp,), duration_s=0.02,
+                  variant=types.SimpleNamespace(variant="none"), current_noise=None, render_quality={})
+    out = tmp_path / f"run_{phase_s}_{cold}_{step_s}.h5"
+    run(config, out, setup=setup, noise=False)
+    with EventReader(out) as r:
+        ev = r.read("events")
+        return int(ev["p"].sum()), int((~ev["p"]).sum()), str(r.attrs["start"])
+
+
+@pytest.mark.slow
+def test_flicker_rates_do_not_depend_on_the_lamp_phase(tmp_path):
+    runs = [dvs_counts(tmp_path, phase_s=k * PERIOD_S / 3, cold=False) for k in range(3)]
+    on = np.array([r[0] for r in runs])
+    off = np.array([r[1] for r in runs])
+    assert on.min() > 1000 and on.max() / on.min() < 1.1 and off.max() / off.min() < 1.1
+    assert np.all(np.abs(on - off) < 0.1 * (on + off) / 2)  # ON and OFF balanced for a periodic light
+    assert all(r[2].startswith("periodic steady state") for r in runs)
+    cold = [dvs_counts(tmp_path, phase_s=k * PERIOD_S / 3, cold=True) for k in range(3)]
+    assert len({c[:2] for c in cold}) > 1 and cold[0][2] == "cold"  # the old start did depend on it
+
+
+@pytest.mark.slow
+def test_flicker_rates_do_not_depend_on_the_step(tmp_path):
+    counts = [sum(dvs_counts(tmp_path, phase_s=3.3e-4, cold=False, step_s=s)[:2]) for s in (2e-5, 1e-5, 5e-6)]
+    assert max(counts) / min(counts) < 1.1
+
+
+def test_steps_are_split_at_the_lamps_jumps():
+    pwm = from_spec({"type": "pwm", "frequency_hz": 500.0, "duty": 0.3, "phase_s": 1e-5})
+    grid = step_grid((pwm,), 0.0, 4e-4 * np.arange(1, 11))  # 4 ms of 400 us steps
+    np.testing.assert_allclose(np.setdiff1d(grid, 4e-4 * np.arange(1, 11)), [1e-5, 6.1e-4, 2.01e-3, 2.61e-3])
+    assert common_period_s((pwm, from_spec({"type": "dc"}), from_spec({"type": "sinusoid", "frequency_hz": 300.0}))) \
+        == pytest.approx(0.01)
+    assert common_period_s((from_spec({"type": "sinusoid", "frequency_hz": 1 / 0.0333}), pwm)) is None  # > 0.1 s
