@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -67,3 +68,30 @@ def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *,
     s = noise.dark_current_spread
     dark = noise.dark_current_a * pm.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
     return gain, dark
+
+
+#: The coarsest step, as a fraction of the fastest noise path's crossing time 1 / (2 pi sqrt(f_a f_out)),
+#: at which noise-event rates stay within about 10 % of their limit (measured: benchmarks/step_convergence.py;
+#: counts converge to first order in the step, from below).
+STEP_FRACTION = 0.5
+
+
+def coarsest_step_s(photoreceptor: Any, noise: NoiseParams, max_photocurrent_a: float) -> float | None:
+    """The longest time step at which noise-event rates do not depend on the step (within ~10 %),
+    or None when there is no bound (no output pole, so no limit to converge to; or no noise).
+
+    Each noise passes its own pole (the photoreceptor's cutoff at the brightest pixel for shot noise,
+    ``read_noise_bandwidth_hz`` for read noise) and the output pole; a path of poles f_a and f_out
+    crosses a level on a time scale 1 / (2 pi sqrt(f_a f_out)), which the step must resolve.
+    """
+    f_out = photoreceptor.second_pole_hz
+    if f_out is None:
+        return None
+    fast = []
+    if noise.shot_noise:
+        fast.append(float(photoreceptor.cutoff_at(max_photocurrent_a + noise.dark_current_a)))
+    if noise.read_noise_v > 0:
+        fast.append(noise.read_noise_bandwidth_hz)
+    if not fast:
+        return None
+    return STEP_FRACTION / (2.0 * math.pi * math.sqrt(max(fast) * f_out))

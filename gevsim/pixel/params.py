@@ -31,7 +31,8 @@ class PhotoreceptorParams(FromTable):
     cutoff_hz : cutoff at ``cutoff_ref_photocurrent_a`` (scales linearly with current).
     cutoff_ref_photocurrent_a : photocurrent at which the cutoff is ``cutoff_hz``.
     max_cutoff_hz : amplifier-limited maximum cutoff (``inf``: none).
-    second_pole_hz : optional fixed second pole (source follower), or None.
+    second_pole_hz : the output pole (source follower, change-amplifier input), or None; every
+        noise passes it after its own pole (:mod:`gevsim.pixel._cascade`).
     slope_factor : n, the subthreshold slope factor (1/kappa).
     temperature_k : for the thermal voltage U_T = k T / q.
     v0_v : output voltage at a total photocurrent of 1 A (an offset only).
@@ -84,8 +85,8 @@ class NoiseParams(FromTable):
     Parameters
     ----------
     shot_noise : photon/photocurrent shot noise (PSD 2 q I) through the photoreceptor filter.
-    read_noise_v : readout/comparator voltage noise (rms, volts) added to the output, band-limited
-        to ``read_noise_bandwidth_hz`` (one pole) so that it does not depend on the time step.
+    read_noise_v : readout/comparator voltage noise (rms, volts) at the output, band-limited by its
+        own pole at ``read_noise_bandwidth_hz`` and then by the output pole (``second_pole_hz``).
     dark_current_a : mean dark current (A); also sets the floor of the log response.
     dark_current_spread : DSNU, lognormal sigma of the per-pixel dark current (fixed pattern).
     prnu : photo response non-uniformity, relative sigma of the per-pixel gain (fixed pattern).

@@ -66,3 +66,23 @@ def test_steps_are_split_at_the_lamps_jumps():
     assert common_period_s((pwm, from_spec({"type": "dc"}), from_spec({"type": "sinusoid", "frequency_hz": 300.0}))) \
         == pytest.approx(0.01)
     assert common_period_s((from_spec({"type": "sinusoid", "frequency_hz": 1 / 0.0333}), pwm)) is None  # > 0.1 s
+
+
+def test_a_step_too_coarse_for_the_noise_is_sub_stepped():
+    """davis346: read noise through 2 kHz and 2 kHz poles crosses levels on 1 / (2 pi 2 kHz) = 80 us;
+    a step must resolve half of it (noise rates within ~10 %: benchmarks/step_convergence.py), else
+    each step is split into equal sub-steps."""
+    from gevsim.emulation.driver import refine, substeps
+    from gevsim.pixel.noise import coarsest_step_s
+
+    preset = load_preset("davis346")
+    limit = coarsest_step_s(preset.photoreceptor, preset.noise, 1e-12)
+    assert limit == pytest.approx(0.5 / (2 * np.pi * 2000.0))
+    manifest = load(DATA / "card.toml")
+    setup = Setup(manifest=manifest, preset=preset, basis_times_s=np.array([0.0]),
+                  current_basis=np.full((1, 1, manifest.render.height, manifest.render.width), 1e-12),
+                  waveforms=(from_spec({"type": "dc"}),), duration_s=0.02,
+                  variant=types.SimpleNamespace(variant="none"), current_noise=None, render_quality={})
+    assert substeps(EmulationConfig(scene=str(DATA / "card.toml"), step_s=2e-5, duration_s=0.02), setup) == 1
+    assert substeps(EmulationConfig(scene=str(DATA / "card.toml"), step_s=1e-4, duration_s=0.02), setup) == 3
+    np.testing.assert_allclose(refine(np.array([3e-4, 6e-4]), 0.0, 3), 1e-4 * np.arange(1, 7))
