@@ -36,7 +36,7 @@ class TimeGrid(FromTable):
     """
 
     duration_s: float | None = None
-    step_s: float = 1e-5
+    step_s: float = 2e-5  # issue 22: noise and flicker rates within 6 % of 5 us (benchmarks/step_convergence.py)
     chunk_steps: int = 256
     frame_rate_hz: float = 1000.0
 
