@@ -47,7 +47,7 @@ class SensorPreset:
             self,
             name=f"{self.name}-noise-free",
             noise=NoiseParams(shot_noise=False, dark_current_a=self.noise.dark_current_a),
-            events=dataclasses.replace(self.events, threshold_mismatch_ln=0.0, leak_rate_hz=0.0),
+            events=dataclasses.replace(self.events, threshold_mismatch_ln=0.0, reset_noise_ln=0.0, leak_rate_hz=0.0),
         )
 
 

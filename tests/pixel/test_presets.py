@@ -35,6 +35,9 @@ def test_ideal_preset_is_noise_free():
     assert not p.noise.shot_noise and p.noise.read_noise_v == 0 and p.events.threshold_mismatch_ln == 0
     q = load_preset("dvs128").ideal()
     assert not q.noise.shot_noise and q.events.threshold_mismatch_ln == 0 and q.pixel_pitch_m == 40e-6
+    assert load_preset("dvs128").events.reset_noise_ln > 0
+    assert q.events.reset_noise_ln == 0 and q.events.leak_rate_hz == 0
+    assert q.photoreceptor == load_preset("dvs128").photoreceptor  # bandwidth is not noise: kept
 
 
 def test_unknown_preset_suggests():
