@@ -20,7 +20,8 @@ The two driver pins were recomputed for issue 22: the davis346 sensor's DVS is h
 during its refractory period (changes forgotten) and released with 0.01 ln reset noise, its leak
 rates are lognormal and its leak phases random; then again for its output pole (2 kHz, every noise
 through two poles) and its start at the lamps' periodic steady state with stationary noise, and
-steps split at the PWM lamp's jumps, and the new root attributes ``start`` and ``substeps``.
+steps split at the PWM lamp's jumps, and the new root attributes ``start``, ``substeps`` and
+``readout_json`` (the davis346 bus, 12 Meps, delays nothing here).
 
 If a deliberate change of the physics moves a pin, recompute it with
 ``python tests/test_pinned_outputs.py`` and say so in the commit message.
@@ -59,8 +60,8 @@ PINS = {
     "reconstruct.sor_rc": "bb63bd2e69e1c08eca1f16872604994330592002ef863103ab74dce4eb97fc6e",
     "reconstruct.direct": "55b8d418c891ccedf23674cd57c5e3f071e5409d1b3fa49f765ae3fc54485712",
     "reconstruct.high_pass": "19e50610e38aec048a5f75ae014603524b2989dad6cf9eb0929393e9ab4bcb29",
-    "driver_one_pose.h5": "c1ecf232195a03b78b8b03f0aa7d6955deadea98262dabd2a74cb417824fd1ca",
-    "driver.h5": "bb57f0714686cb2f52a4a01d8acc4be7d89036847fe2818e67944ae4a4819881",
+    "driver_one_pose.h5": "b02062f4f66f66361299c26187a18a9ae19a58db5cf6663e90c4a4107ab32183",
+    "driver.h5": "810f332c94f6f2f9e4d16e13fe5b0dc1a80fba3185ed7a0fcd3945ac191f0ada",
 }
 
 

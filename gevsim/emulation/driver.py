@@ -27,6 +27,7 @@ from gevsim.emulation.config import EmulationConfig, check_consistency
 from gevsim.emulation.emulators import APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, SEED_SLOTS, make_emulator
 from gevsim.emulation.summary import RunSummary
 from gevsim.errors import ConfigError, suggest
+from gevsim.events.readout import Readout
 from gevsim.illumination import from_spec, mix_poses, weights_at
 from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
@@ -193,6 +194,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}
+    readouts = {name: Readout(preset.readout) for name in emulators}  # each stream: the sensor's own bus
+    end_us = int(round(setup.duration_s * 1e6))
     aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))
            if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
     aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
@@ -229,7 +232,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
             pixel_s += time.perf_counter() - tick
             for name, em in emulators.items():
                 tick = time.perf_counter()
-                events = em.process(v, t_end)
+                events = readouts[name].process(em.process(v, t_end), end_us=end_us)
                 event_s[name] += time.perf_counter() - tick
                 stream = EMULATORS[name].stream
                 if c == 0 and EMULATORS[name].decodes:  # decoding starts from it
@@ -238,7 +241,15 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
                 counts[stream] += len(events)
             if progress:
                 progress(c + 1, len(chunks))
-        wr.close(t_end_us=int(round(setup.duration_s * 1e6)), before_commit=before_commit)
+        readout = {EMULATORS[n].stream: r.summary() for n, r in readouts.items()}
+        for stream, counts_of in readout.items():
+            if counts_of["delayed"] or counts_of["dropped"] or counts_of["pending_at_end"]:
+                log.warning("readout of %s: %d of %d events delayed (mean %.3g us, max %.3g us), %d dropped, %d still "
+                            "queued at the end (%.3g events/s at the most)", stream, counts_of["delayed"],
+                            counts_of["requested"], counts_of["mean_delay_us"], counts_of["max_delay_us"],
+                            counts_of["dropped"], counts_of["pending_at_end"], counts_of["max_rate_eps"])
+        wr.set_attrs("/", readout_json=json.dumps(readout, sort_keys=True, default=float))
+        wr.close(t_end_us=end_us, before_commit=before_commit)
     pixel_steps = n_steps * sub * h * w
     return RunSummary(
         out=str(out), width=w, height=h, steps=n_steps, duration_s=setup.duration_s, frames=len(frame_t),

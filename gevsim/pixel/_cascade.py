@@ -101,7 +101,8 @@ def smooth_row(cur, gain, dark, v1, v2, rd, out, zs1, zs2, zr1, zr2, d, fc_per_a
         ea = one_minus_exp(alpha * d) * filt + (1.0 - filt)
         a = 1.0 - ea
         e1 = v1[p] - u
-        y = u + b2 * (v2[p] - u) + beta / (beta - alpha) * (a - b2) * e1  # held input, exact
+        # held input, exact; without a photoreceptor filter (filt = 0) x jumps to u: no coupling
+        y = u + b2 * (v2[p] - u) + filt * beta / (beta - alpha) * (a - b2) * e1
         x = u + a * e1
         if shot_q > 0.0:
             var = shot_q * fc / itot

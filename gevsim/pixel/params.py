@@ -153,3 +153,22 @@ class EventParams(FromTable):
         for name in ("threshold_mismatch_ln", "refractory_s", "reset_noise_ln", "leak_rate_hz", "leak_rate_spread"):
             real(getattr(self, name), name, low=0)
 
+
+@dataclass(frozen=True)
+class ReadoutParams(FromTable):
+    """Event readout of a sensor (a preset's ``[readout]`` table).
+
+    Parameters
+    ----------
+    max_rate_eps : events per second the arbiter and bus deliver at the most (``inf``: no limit).
+    max_delay_s : the longest an event waits to be read before it is dropped (``inf``: never).
+    """
+
+    TABLE = "readout"
+
+    max_rate_eps: float = math.inf
+    max_delay_s: float = math.inf
+
+    def __post_init__(self):
+        real(self.max_rate_eps, "max_rate_eps", low=0, low_open=True, allow_inf=True)
+        real(self.max_delay_s, "max_delay_s", low=0, allow_inf=True)

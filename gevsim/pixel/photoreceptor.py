@@ -24,6 +24,16 @@ from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
 from gevsim.timebase import check_chunk
 
 
+def _separated(f_hz: np.ndarray, f_out_hz: float) -> np.ndarray:
+    """Corner frequencies moved to :data:`~gevsim.pixel._cascade.POLE_GAP` from the output pole
+    where closer, as the kernel does (so the stationary start has the kernel's law)."""
+    from gevsim.pixel._cascade import POLE_GAP
+
+    f = np.asarray(f_hz, dtype=np.float64)
+    close = np.abs(f_out_hz - f) < POLE_GAP * f_out_hz
+    return np.where(close, np.where(f <= f_out_hz, f_out_hz * (1 - POLE_GAP), f_out_hz * (1 + POLE_GAP)), f)
+
+
 class Photoreceptor:
     """Stateful photoreceptor for an (H, W) array of pixels.
 
@@ -133,22 +143,24 @@ class Photoreceptor:
         shot noise at total photocurrent ``itot``, and to v2 the output pole's share of the read
         noise already in ``fn[0]`` (:mod:`gevsim.pixel._cascade`), in place."""
         p = self.params
-        has2 = p.second_pole_hz is not None
-        beta = 2.0 * math.pi * p.second_pole_hz if p.second_pole_hz is not None else math.inf
+        f_out = p.second_pole_hz
+        beta = 2.0 * math.pi * f_out if f_out is not None else math.inf
         if self.noise.shot_noise:
             fc = p.cutoff_at(itot)  # as the kernel: proportional to the total current, capped
+            if f_out is not None:  # as the kernel: a pole within POLE_GAP of the output pole is moved to it
+                fc = _separated(fc, f_out)
             var = math.pi * elementary_charge * fc / itot
             alpha = 2.0 * math.pi * fc
             xn = np.sqrt(var) * self.start_z[0]
             v1 += xn
-            if has2:
+            if f_out is not None:
                 v2 += beta / (alpha + beta) * xn + np.sqrt(var * alpha * beta) / (alpha + beta) * self.start_z[1]
             else:
                 v2 += xn
-        if has2 and self.n_read:
-            alpha = 2.0 * math.pi * self.fn_hz[0]
+        if f_out is not None and self.n_read:
+            a_r = 2.0 * math.pi * float(_separated(np.asarray(self.fn_hz[0]), f_out))
             s = math.sqrt(self.fn_var[0])
-            v2 += beta / (alpha + beta) * fn[0] + s * math.sqrt(alpha * beta) / (alpha + beta) * self.start_z[2]
+            v2 += beta / (a_r + beta) * fn[0] + s * math.sqrt(a_r * beta) / (a_r + beta) * self.start_z[2]
 
     def process(self, photocurrent_a: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Advance over T steps and return the output (T, H, W) float32, in ln units.

@@ -16,9 +16,9 @@ from typing import Any
 from gevsim.config import TomlReader, read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.pixel.aps import ApsParams
-from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams
+from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams, ReadoutParams
 
-TABLES = ("sensor", "photoreceptor", "noise", "events", "aps")
+TABLES = ("sensor", "photoreceptor", "noise", "events", "aps", "readout")
 SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_factor",
                "bandwidth_reference_spectrum")
 
@@ -38,6 +38,7 @@ class SensorPreset:
     events: EventParams
     aps: ApsParams | None
     source: str
+    readout: ReadoutParams = ReadoutParams()  # no limit unless the preset's [readout] says
 
     def ideal(self) -> SensorPreset:
         """The same sensor with every noise source and mismatch off (counterfactual runs)."""
@@ -57,7 +58,8 @@ def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None 
     ``events`` (e.g. ``cutoff_hz``, ``dark_current_a``, ``threshold_mismatch_ln``)."""
     import dataclasses
 
-    parts: dict[str, Any] = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events}
+    parts: dict[str, Any] = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events,
+                             "readout": preset.readout}
     top: dict[str, Any] = {}
     for key, value in overrides.items():
         if key in ("pixel_pitch_m", "fill_factor"):
@@ -128,6 +130,7 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         events=EventParams.from_table(raw["events"], source=src),
         aps=None if aps is None else ApsParams.from_table(aps, source=src),
         source=src,
+        readout=ReadoutParams.from_table(raw.get("readout", {}), source=src),
     )
 
 

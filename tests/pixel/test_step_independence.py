@@ -104,3 +104,21 @@ def test_a_periodic_light_starts_at_its_periodic_steady_state(cold):
     np.testing.assert_allclose(pr.v2, v2, rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="before the first process"):
         pr.settle(current, np.full(n, dt))
+
+
+def test_without_a_photoreceptor_filter_the_output_pole_still_filters():
+    """cutoff_hz = max_cutoff_hz = inf: the photoreceptor follows ln(I) at once and the output pole
+    alone filters a step: y(t) = u2 - (u2 - u1) exp(-2 pi f_out t) (found by review: the pole was skipped)."""
+    preset = with_overrides(load_preset("davis346"), {"cutoff_hz": math.inf, "max_cutoff_hz": math.inf,
+                                                      "shot_noise": False, "read_noise_v": 0.0, "prnu": 0.0,
+                                                      "dark_current_spread": 0.0})
+    pr = Photoreceptor((1, 1), params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(0))
+    dt = 2e-6
+    t = dt * np.arange(1, 201)
+    current = np.where(np.arange(200) < 1, 1e-12, 4e-12)[:, None, None]
+    v = pr.process(current, t)[:, 0, 0].astype(np.float64)
+    dark = preset.noise.dark_current_a
+    u1, u2 = math.log(1e-12 + dark), math.log(4e-12 + dark)
+    beta = 2 * math.pi * preset.photoreceptor.second_pole_hz
+    expected = u2 - (u2 - u1) * np.exp(-beta * (t[1:] - t[0]))
+    np.testing.assert_allclose(v[1:], expected, rtol=0, atol=2e-5)

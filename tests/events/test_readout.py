@@ -1,0 +1,95 @@
+"""Readout: at most max_rate_eps events per second leave the sensor, in request order; delays,
+drops and events still queued at the end are counted (issue 23, item 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gevsim.events.readout import Readout, ReadoutParams
+from gevsim.events.types import BRIGHTNESS_DTYPE
+
+
+def requests(t_us) -> np.ndarray:
+    ev = np.zeros(len(t_us), BRIGHTNESS_DTYPE)
+    ev["t"] = t_us
+    ev["x"] = np.arange(len(t_us)) % 100
+    return ev
+
+
+def test_a_burst_leaves_one_event_per_service_time():
+    r = Readout(ReadoutParams(max_rate_eps=1e6))  # one event per microsecond
+    out = r.process(requests(np.zeros(10, np.int64)))
+    np.testing.assert_array_equal(out["t"], np.arange(10))
+    np.testing.assert_array_equal(out["x"], np.arange(10))  # request order kept
+    s = r.summary()
+    assert (s["requested"], s["delivered"], s["delayed"], s["dropped"]) == (10, 10, 9, 0)
+    assert s["mean_delay_us"] == pytest.approx(5.0) and s["max_delay_us"] == pytest.approx(9.0)
+
+
+def test_sustained_overload_delivers_the_bus_rate_and_counts_the_rest():
+    rate, n = 1e5, 20_000  # 2e5 requests per second for 0.1 s into a 1e5 eps bus
+    t = np.sort(np.random.default_rng(0).integers(0, 100_000, n))
+    r = Readout(ReadoutParams(max_rate_eps=rate))
+    out = np.concatenate([r.process(requests(t[a:b]), end_us=100_000) for a, b in ((0, 7000), (7000, n))])
+    s = r.summary()
+    assert s["requested"] == s["delivered"] + s["dropped"] + s["pending_at_end"] == n
+    assert s["delivered"] == pytest.approx(rate * 0.1, abs=2) and len(out) == s["delivered"]
+    assert np.all(np.diff(out["t"]) >= 0)
+    for w in (10, 1000):  # no window of w us holds more than rate * w + 1 events
+        counts = np.searchsorted(out["t"], out["t"] + w, side="left") - np.arange(len(out))
+        assert counts.max() <= rate * w * 1e-6 + 1
+
+
+def test_events_waiting_too_long_are_dropped():
+    r = Readout(ReadoutParams(max_rate_eps=1e6, max_delay_s=4.5e-6))
+    out = r.process(requests(np.zeros(10, np.int64)))
+    np.testing.assert_array_equal(out["t"], np.arange(5))  # waits of 0..4 us; the rest would wait >= 5 us
+    assert r.summary()["dropped"] == 5
+
+
+def test_chunks_and_no_limit():
+    t = np.sort(np.random.default_rng(1).integers(0, 1000, 3000))
+    ev = requests(t)
+    one = Readout(ReadoutParams(max_rate_eps=2e6)).process(ev)
+    r = Readout(ReadoutParams(max_rate_eps=2e6))
+    parts = np.concatenate([r.process(ev[a:b]) for a, b in ((0, 1), (1, 1700), (1700, 3000))])
+    np.testing.assert_array_equal(one, parts)
+    assert Readout(ReadoutParams()).process(ev) is ev  # no limit: untouched
+    with pytest.raises(ValueError, match="max_rate_eps"):
+        ReadoutParams(max_rate_eps=0.0)
+
+
+def test_the_driver_reads_every_stream_through_the_sensors_bus(tmp_path):
+    """A flickering card read through a 200 keps bus: the file holds what was delivered, the rest
+    is counted in readout_json (conservation), and no 1 ms holds more than the bus carries."""
+    import json
+    import types
+    from pathlib import Path
+
+    from gevsim.emulation import EmulationConfig, run
+    from gevsim.emulation.driver import Setup
+    from gevsim.illumination import from_spec
+    from gevsim.io import EventReader
+    from gevsim.pixel import load_preset
+    from gevsim.pixel.presets import with_overrides
+    from gevsim.render import load
+
+    data = Path(__file__).parents[1] / "data"
+    manifest = load(data / "card.toml")
+    h, w = manifest.render.height, manifest.render.width
+    lamp = from_spec({"type": "pwm", "frequency_hz": 500.0, "duty": 0.3, "low_level": 0.3})
+    preset = with_overrides(load_preset("davis346"), {"max_rate_eps": 2e5})  # as [sensor] overrides do
+    setup = Setup(manifest=manifest, preset=preset, basis_times_s=np.array([0.0]),
+                  current_basis=np.full((1, 1, h, w), 2e-10), waveforms=(lamp,), duration_s=0.01,
+                  variant=types.SimpleNamespace(variant="none"), current_noise=None, render_quality={})
+    config = EmulationConfig(scene=str(data / "card.toml"), seed=3, duration_s=0.01, emulators=("dvs",),
+                             frame_rate_hz=0.0)
+    run(config, tmp_path / "r.h5", setup=setup)
+    with EventReader(tmp_path / "r.h5") as r:
+        ev = r.read("events")
+        s = json.loads(r.attrs["readout_json"])["events"]
+    assert s["delayed"] > 0 and s["delivered"] == len(ev)
+    assert s["requested"] == s["delivered"] + s["dropped"] + s["pending_at_end"]
+    per_ms = np.bincount(ev["t"] // 1000)
+    assert per_ms.max() <= 2e5 * 1e-3 + 1
