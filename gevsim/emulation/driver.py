@@ -182,10 +182,13 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
         check_frames_fit(config, out, width=manifest.render.width, height=manifest.render.height,
                          duration_s=config.duration_s or manifest.duration_s)
     setup = setup if setup is not None else prepare(config, cache_dir=cache_dir, progress=render_progress)
+    # The time grid (sub-steps, steps split at lamp jumps) comes from the run with flicker and noise,
+    # so that its counterfactuals step alike and draw the same noise at the same steps (paired runs).
+    sub = substeps(config, setup)
+    grid_waveforms = setup.waveforms
     setup = counterfactual(setup, flicker=flicker, noise=noise)
     render_s = time.perf_counter() - start
     preset, m = setup.preset, setup.manifest
-    sub = substeps(config, setup) if noise else 1
     h, w = m.render.height, m.render.width
     seeds = np.random.SeedSequence(config.seed).spawn(SEED_SLOTS)
     pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise,
@@ -225,7 +228,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
         for c, a in enumerate(chunks):
             b = min(a + config.chunk_steps, n_steps)
             t0 = t_end_all[a] - config.step_s
-            t_end = step_grid(setup.waveforms, t0, refine(t_end_all[a:b], t0, sub))
+            t_end = step_grid(grid_waveforms, t0, refine(t_end_all[a:b], t0, sub))
             current = held_photocurrent(setup, t_end_all[a] - config.step_s, t_end)
             tick = time.perf_counter()
             v = pr.process(current, t_end)
