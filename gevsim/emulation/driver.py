@@ -229,7 +229,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
             b = min(a + config.chunk_steps, n_steps)
             t0 = t_end_all[a] - config.step_s
             t_end = step_grid(grid_waveforms, t0, refine(t_end_all[a:b], t0, sub))
-            current = held_photocurrent(setup, t_end_all[a] - config.step_s, t_end)
+            current = held_photocurrent(setup, t0, t_end)
             tick = time.perf_counter()
             v = pr.process(current, t_end)
             pixel_s += time.perf_counter() - tick

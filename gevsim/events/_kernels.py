@@ -85,13 +85,13 @@ def _dvs_commit(v_row, ref, v_prev, d_end):
 
 
 @njit(inline="always")
-def _release(d_hold, reset_sigma, key, p, count):
-    """The distance right after a pixel's change amplifier leaves reset: the held distance
-    minus the reset (kTC, charge injection) noise of that release, a normal deviate keyed by
-    (key, pixel, its event count), so that it depends on neither chunks nor threads."""
+def _release(reset_sigma, key, p, count):
+    """The distance right after a pixel's change amplifier leaves reset (it is 0 while held): minus
+    the reset (kTC, charge injection) noise of that release, a normal deviate keyed by (key, pixel,
+    its event count), so that it depends on neither chunks nor threads."""
     if reset_sigma > 0.0:
-        return d_hold - reset_sigma * np.float64(normal(pixel_bits(stream_key(key, count, 0), p)))
-    return d_hold
+        return -reset_sigma * np.float64(normal(pixel_bits(stream_key(key, count, 0), p)))
+    return 0.0
 
 
 @njit(parallel=True, nogil=True, cache=True)
@@ -152,7 +152,7 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_
                                 d_end[i] = 0.0  # still held at the step end: the level is the signal
                                 continue
                             s = ready
-                            d = _release(0.0, reset_sigma, key, p, c)
+                            d = _release(reset_sigma, key, p, c)
                         while m < MAX_EVENTS_PER_STEP:
                             if d >= on:
                                 cross, pol = s, 1
@@ -183,7 +183,7 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_
                                 d = 0.0
                                 s = 1.0
                                 break
-                            d = _release(0.0, reset_sigma, key, p, c)
+                            d = _release(reset_sigma, key, p, c)
                         if stopped:  # this pixel's step and the rest are redone on resumption
                             n = n_pixel
                             region[b, RESUME_T] = t

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, vectorize
 
 from gevsim._portable import expm1_scalar
 from gevsim.pixel._fastmath import expf, logf
@@ -58,6 +58,13 @@ def separate(alpha, beta):
     if abs(beta - alpha) < POLE_GAP * beta:
         return beta * (1.0 - POLE_GAP) if alpha <= beta else beta * (1.0 + POLE_GAP)
     return alpha
+
+
+@vectorize(["float64(float64, float64)"], cache=True)
+def separated_hz(f_hz, f_out_hz):
+    """:func:`separate` over arrays (in any unit, here Hz): for the stationary start, which must
+    follow the kernel's law."""
+    return separate(f_hz, f_out_hz)
 
 
 @njit(inline="always")

@@ -19,19 +19,10 @@ from scipy.constants import elementary_charge
 from gevsim import _portable as pm
 from gevsim._finite import count_invalid
 from gevsim.pixel import _kernels
+from gevsim.pixel._cascade import separated_hz
 from gevsim.pixel.noise import fixed_pattern, output_noise_poles
 from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
 from gevsim.timebase import check_chunk
-
-
-def _separated(f_hz: np.ndarray, f_out_hz: float) -> np.ndarray:
-    """Corner frequencies moved to :data:`~gevsim.pixel._cascade.POLE_GAP` from the output pole
-    where closer, as the kernel does (so the stationary start has the kernel's law)."""
-    from gevsim.pixel._cascade import POLE_GAP
-
-    f = np.asarray(f_hz, dtype=np.float64)
-    close = np.abs(f_out_hz - f) < POLE_GAP * f_out_hz
-    return np.where(close, np.where(f <= f_out_hz, f_out_hz * (1 - POLE_GAP), f_out_hz * (1 + POLE_GAP)), f)
 
 
 class Photoreceptor:
@@ -88,6 +79,13 @@ class Photoreceptor:
         """Photoreceptor output in volts from ln units."""
         return self.params.v0_v + self.params.volts_per_ln * np.asarray(v_ln)
 
+    def _bandwidth(self) -> tuple[float, float, float, float]:
+        """The kernel's bandwidth arguments: (fc_ref (<= 0: no filter), i_ref, fc_max, f2 (0: none))."""
+        p = self.params
+        fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
+        fc_max = p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf
+        return fc_ref, p.cutoff_ref_photocurrent_a, fc_max, p.second_pole_hz or 0.0
+
     def steady_state(self, photocurrent_a: ArrayLike) -> np.ndarray:
         """Noise-free settled output (ln units) for a constant photocurrent (H, W)."""
         i = np.asarray(photocurrent_a, float).reshape(-1)
@@ -111,16 +109,13 @@ class Photoreceptor:
         if count_invalid(flat, nonnegative=True):
             raise ValueError("settle: photocurrent must be finite and >= 0")
         p = self.params
-        fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
         n = self.gain.size
 
         def period(v1: np.ndarray, v2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             v1, v2 = v1.copy(), v2.copy()
-            _kernels.photoreceptor(
-                flat, dt, self.gain, self.dark_a, v1, v2, np.zeros((0, n)), np.zeros(0), np.zeros(0),
-                np.uint64(self.key), 0, fc_ref, p.cutoff_ref_photocurrent_a,
-                p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf, p.second_pole_hz or 0.0, 0.0, 0,
-                np.empty(flat.shape, np.float32))
+            _kernels.photoreceptor(flat, dt, self.gain, self.dark_a, v1, v2, np.zeros((0, n)), np.zeros(0),
+                                   np.zeros(0), np.uint64(self.key), 0, *self._bandwidth(), 0.0, 0,
+                                   np.empty(flat.shape, np.float32))
             return v1, v2
 
         first = flat[0].astype(np.float64) * self.gain + self.dark_a
@@ -148,7 +143,7 @@ class Photoreceptor:
         if self.noise.shot_noise:
             fc = p.cutoff_at(itot)  # as the kernel: proportional to the total current, capped
             if f_out is not None:  # as the kernel: a pole within POLE_GAP of the output pole is moved to it
-                fc = _separated(fc, f_out)
+                fc = separated_hz(fc, f_out)
             var = math.pi * elementary_charge * fc / itot
             alpha = 2.0 * math.pi * fc
             xn = np.sqrt(var) * self.start_z[0]
@@ -158,7 +153,7 @@ class Photoreceptor:
             else:
                 v2 += xn
         if f_out is not None and self.n_read:
-            a_r = 2.0 * math.pi * float(_separated(np.asarray(self.fn_hz[0]), f_out))
+            a_r = 2.0 * math.pi * float(separated_hz(self.fn_hz[0], f_out))
             s = math.sqrt(self.fn_var[0])
             v2 += beta / (a_r + beta) * fn[0] + s * math.sqrt(a_r * beta) / (a_r + beta) * self.start_z[2]
 
@@ -171,7 +166,6 @@ class Photoreceptor:
             the previous step to ``t_s[k]``.
         t_s : (T,) strictly increasing end times of the steps, after the current time.
         """
-        p = self.params
         current, t, prev = check_chunk(photocurrent_a, t_s, shape=self.shape, name="photocurrent", after=self.t_s)
         if len(t) == 0:
             return np.zeros((0,) + self.shape, np.float32)
@@ -193,12 +187,9 @@ class Photoreceptor:
             raise ValueError(f"photocurrent must be finite and >= 0 (> 0 where the dark current is 0): "
                              f"{bad} of {flat.size} values are not")
         out = np.empty(flat.shape, np.float32)
-        fc_ref = p.cutoff_hz if math.isfinite(p.cutoff_hz) else (-1.0 if not math.isfinite(p.max_cutoff_hz) else 1e300)
         _kernels.photoreceptor(
             flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint64(self.key), self.step,
-            fc_ref, p.cutoff_ref_photocurrent_a, p.max_cutoff_hz if math.isfinite(p.max_cutoff_hz) else np.inf,
-            p.second_pole_hz or 0.0, math.pi * elementary_charge if self.noise.shot_noise else 0.0, self.n_read,
-            out,
+            *self._bandwidth(), math.pi * elementary_charge if self.noise.shot_noise else 0.0, self.n_read, out,
         )
         self.v1, self.v2, self.fn = v1, v2, fn
         self.t_s = float(t[-1])
