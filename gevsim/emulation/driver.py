@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import os
 import time
 from collections.abc import Callable
@@ -24,7 +25,8 @@ from gevsim import _portable as pm
 from gevsim._validate import real
 from gevsim.emulation import layout
 from gevsim.emulation.config import EmulationConfig, check_consistency
-from gevsim.emulation.emulators import APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, SEED_SLOTS, make_emulator
+from gevsim.emulation.emulators import (APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, READOUT_SEED, SEED_SLOTS,
+                                        make_emulator)
 from gevsim.emulation.summary import RunSummary
 from gevsim.errors import ConfigError, suggest
 from gevsim.events.readout import Readout
@@ -33,6 +35,7 @@ from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
 from gevsim.optics.photometry import K_M_LM_PER_W
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
+from gevsim.pixel.noise import dark_current_a
 from gevsim.pixel.presets import SensorPreset, with_overrides
 from gevsim.render import MitsubaScene, SceneManifest, VariantChoice, load, override, render_basis
 from gevsim.render.scene_config import resolved_config, scene_optics
@@ -82,7 +85,7 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
     smallest = min((*config.thresholds_ln, preset.events.threshold_on_ln, preset.events.threshold_off_ln))
     basis = render_basis(scene, cache_dir=cache_dir, progress=progress, smallest_threshold_ln=smallest)
     lens, _ = scene_optics(manifest)
-    pixel = Pixel(pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor)
+    pixel = Pixel(pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor, qe=preset.qe)
     spectra = [lamp_spectrum(g.emission.spectrum or DEFAULT_SPECTRUM) for g in manifest.light_groups]
     factors = group_photocurrent_factors(spectra, pixel=pixel, lens=lens)
     r = manifest.render
@@ -197,7 +200,9 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}
-    readouts = {name: Readout(preset.readout) for name in emulators}  # each stream: the sensor's own bus
+    readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
+    readouts = {name: Readout(preset.readout, key=int(readout_key) + EMULATORS[name].seed_slot)
+                for name in emulators}  # each stream: the sensor's own bus
     end_us = int(round(setup.duration_s * 1e6))
     aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))
            if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
@@ -207,7 +212,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     t_end_all = config.step_s * np.arange(1, n_steps + 1)
     frame_t = config.time.frame_times_s(setup.duration_s)
     counts = {EMULATORS[n].stream: 0 for n in emulators}
-    dark = float(preset.noise.dark_current_a)
+    dark = dark_current_a(preset.noise, preset.photoreceptor.temperature_k)
     # render_noise_json with sorted keys: a fresh render and a cache hit list them in other orders.
     extra = {"scene": m.name, "sensor": preset.name, "step_s": config.step_s, "duration_s": setup.duration_s,
              "flicker": flicker, "noise": noise, "variant": setup.variant.variant,
@@ -235,7 +240,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
             pixel_s += time.perf_counter() - tick
             for name, em in emulators.items():
                 tick = time.perf_counter()
-                events = readouts[name].process(em.process(v, t_end), end_us=end_us)
+                until = None if b == n_steps else math.floor(t_end[-1] * 1e6)
+                events = readouts[name].process(em.process(v, t_end), end_us=end_us, until_us=until)
                 event_s[name] += time.perf_counter() - tick
                 stream = EMULATORS[name].stream
                 if c == 0 and EMULATORS[name].decodes:  # decoding starts from it

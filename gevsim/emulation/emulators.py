@@ -23,14 +23,15 @@ from gevsim.errors import suggest
 from gevsim.events import BrightnessEmulator, CenterSurroundEmulator, GradientEmulator
 from gevsim.pixel.params import EventParams
 
-__all__ = ["APS_READ_SEED", "APS_SEED", "EMULATORS", "FRAME_EMULATORS", "PHOTORECEPTOR_SEED", "SEED_SLOTS",
+__all__ = ["APS_READ_SEED", "APS_SEED", "EMULATORS", "FRAME_EMULATORS", "PHOTORECEPTOR_SEED", "READOUT_SEED", "SEED_SLOTS",
            "STREAMS", "Emulator", "check_emulator", "check_emulator_list", "make_emulator"]
 
 #: Slots of ``SeedSequence(seed).spawn(SEED_SLOTS)`` used outside the emulators.
 PHOTORECEPTOR_SEED = 0
 APS_SEED = 5
 APS_READ_SEED = 6
-SEED_SLOTS = 7
+READOUT_SEED = 7
+SEED_SLOTS = 8  # SeedSequence.spawn(n)[i] does not depend on n: earlier slots draw as before
 
 
 @dataclass(frozen=True)
@@ -68,7 +69,8 @@ class Emulator:
 
 
 def _dvs(shape, *, config, preset, rng):
-    return BrightnessEmulator(shape, preset.events, rng=rng, cold_start=config.cold_start)
+    return BrightnessEmulator(shape, preset.events, rng=rng, cold_start=config.cold_start,
+                              temperature_k=preset.photoreceptor.temperature_k)
 
 
 def _dvs_nominal(emulator, preset) -> np.ndarray:
@@ -84,14 +86,15 @@ def _theta(emulator, preset) -> np.ndarray:
 def _gradient(rc: bool):
     def build(shape, *, config, preset, rng):
         return GradientEmulator(shape, thresholds_ln=config.thresholds_ln, rc=rc,
-                                mismatch_sigma_ln=preset.events.threshold_mismatch_ln,
+                                offset_sigma_ln=preset.events.comparator_offset_v / preset.photoreceptor.volts_per_ln,
                                 hysteresis_ln=config.hysteresis_ln, rng=rng)
     return build
 
 
 def _csdvs(shape, *, config, preset, rng):
     return CenterSurroundEmulator(shape, preset.events, surround_length_px=config.surround_length_px,
-                                  surround_tau_s=config.surround_tau_s, rng=rng, cold_start=config.cold_start)
+                                  surround_tau_s=config.surround_tau_s, rng=rng, cold_start=config.cold_start,
+                                  temperature_k=preset.photoreceptor.temperature_k)
 
 
 def _dvs_frames(shape, *, thresholds: Sequence[float], dvs_params: EventParams, rng: np.random.Generator):

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from gevsim.pixel._fastmath import expf
 from gevsim.pixel._kernels import normal, pixel_bits, stream_key
 
 BLOCK = 1024
@@ -38,18 +39,24 @@ EVENT_TABLE = np.array([[0, -1, 1], [-1, 0, 1], [-1, 1, 0]], dtype=np.int8)
 
 
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _dvs_scan(v_row, ref, v_prev, leak, th_on, th_off, last_t, held_after, dt, d0, slope, d_end, busy):
+def _dvs_scan(v_row, ref, v_prev, leak, leak_light, th_on, th_off, last_t, held_after, dt, d0, slope, d_end, busy):
     """Branch-free (vectorised) pass over a run of pixels (all arguments sliced to it) for
-    one step: the distance d0 = signal - level at the step start, its slope over the step,
+    one step: the distance d0 = signal - level at the step start, its slope over the step
+    (signal change plus leak: ``leak`` + ``leak_light`` x the photocurrent exp(signal) at the step
+    start, when ``leak_light`` is not empty),
     the distance at the step end if no event fires, and whether the pixel needs the exact
     loop: its distance reaches a threshold within 1e-9 relative (a superset of the pixels
     that fire), or it is still held in reset (refractory) at the step start
     (``last_t > held_after``). Returns how many need it. (Slices rather than offsets: LLVM
     vectorises this 4x better.)"""
     m = 0
+    light = leak_light.shape[0] > 0
     for i in range(v_row.shape[0]):
         v0 = v_prev[i]
-        k = (np.float64(v_row[i]) - v0) + leak[i] * dt
+        rate = leak[i]
+        if light:
+            rate += leak_light[i] * np.float64(expf(np.float32(v0)))
+        k = (np.float64(v_row[i]) - v0) + rate * dt
         d = v0 - ref[i]
         e = d + k * 1.0
         on = th_on[i]
@@ -95,7 +102,7 @@ def _release(reset_sigma, key, p, count):
 
 
 @njit(parallel=True, nogil=True, cache=True)
-def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_off, leak, refractory,
+def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_off, leak, leak_light, refractory,
                reset_sigma, key, px_x, px_y, buf_t, buf_x, buf_y, buf_p, region, order):
     """DVS: per pixel a memorised level ``ref``; an ON (OFF) event when the signal
     rises (falls) by th_on (th_off) from it, at the linearly interpolated crossing
@@ -103,7 +110,8 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_
     level follows the signal and changes during that time are forgotten (Lichtsteiner,
     Posch & Delbruck 2008; so a ramp of slope k gives events refractory + theta / k apart).
     On release the level takes a reset error of sigma ``reset_sigma`` (ln). ``leak`` (ln/s)
-    lowers the level over time, producing leak (ON) events. ``count`` (P,) counts each
+    lowers the level over time, producing leak (ON) events; ``leak_light`` (ln/s per A; empty: none)
+    adds leak in proportion to the photocurrent exp(v). ``count`` (P,) counts each
     pixel's events (it keys the reset noise).
 
     Per block and step, a vectorised scan finds the pixels that may fire or are held; the
@@ -133,7 +141,8 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_
                 held_after = ta - refractory if refractory > 0.0 else np.inf
                 first = lo + region[b, RESUME_I] if t == t0 else lo
                 end = hi
-                if _dvs_scan(v[t, first:hi], ref[first:hi], v_prev[first:hi], leak[first:hi], th_on[first:hi],
+                light = leak_light[first:hi] if leak_light.shape[0] else leak_light
+                if _dvs_scan(v[t, first:hi], ref[first:hi], v_prev[first:hi], leak[first:hi], light, th_on[first:hi],
                              th_off[first:hi], last_t[first:hi], held_after, dt, d0, slope, d_end, busy):
                     for q in range(_compact(busy, hi - first, idx)):
                         i = idx[q]
@@ -220,12 +229,12 @@ def _crossing(g0, g1, t_prev, t_new, theta, hysteresis):
 
 
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _gradient_row(here, there, step_x, n, theta, tern, hysteresis, rc, g_new, t_new, idx):
+def _gradient_row(here, there, step_x, n, theta, offset, tern, hysteresis, rc, g_new, t_new, idx):
     """Branch-free (vectorised) pass over one row of comparators of one axis: the new
     gradient and ternary state of comparator i at pixel i * step_x, where the
     neighbour values are ``there`` (same pixel, next row) for G_Y or ``here`` shifted
-    by one for G_X; then the list ``idx`` of the comparators that change state (in order,
-    branch-free). Returns its length."""
+    by one for G_X, less the comparator's input offset; then the list ``idx`` of the
+    comparators that change state (in order, branch-free). Returns its length."""
     for i in range(n):
         x = i * step_x
         if there.shape[0] == 0:  # X axis: neighbours in the same row
@@ -234,7 +243,7 @@ def _gradient_row(here, there, step_x, n, theta, tern, hysteresis, rc, g_new, t_
         else:  # Y axis: ``there`` is the next row (with RC the one after it, whose difference is halved)
             g = np.float64(there[x]) - np.float64(here[x])
             g2 = 0.0
-        g = 0.5 * (g + g2) if rc else g
+        g = (0.5 * (g + g2) if rc else g) - offset[x]
         th = theta[x]
         old = tern[x]
         up = (g >= th) | ((old == 1) & (g >= th - hysteresis))
@@ -249,14 +258,15 @@ def _gradient_row(here, there, step_x, n, theta, tern, hysteresis, rc, g_new, t_
 
 
 @njit(parallel=True, nogil=True, cache=True)
-def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, interpolate, table,
+def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, offset, hysteresis, rc, interpolate, table,
              buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
     """Gradient events (Lehtonen et al.): for each comparator (axis a, pixel y, x)
     G_X = v[y, x+1] - v[y, x], G_Y = v[y+1, x] - v[y, x] (with resolution
     compression ``rc`` the mean over the pair starting at even x resp. even y,
     one comparator per pair); ternary state T = sgn(G) if |G| >= theta else 0;
-    an event ``table[T_prev + 1, T + 1]`` whenever T changes. g_prev, tern and
-    theta are (2, H, W); v is (T, H, W). A vectorised pass finds the comparators
+    an event ``table[T_prev + 1, T + 1]`` whenever T changes. G is taken less the
+    comparator's input offset ``offset``. g_prev, tern, theta and offset are (2, H, W);
+    v is (T, H, W). A vectorised pass finds the comparators
     that change; events are then written for those only.
 
     Row y is block y: it writes into its own region of the flat buffers, from its resume
@@ -283,10 +293,10 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
                         step_x = 2 if rc else 1
                         m = W // 2 if rc else W - 1
                         if rc:
-                            changed = _gradient_row(v[t, y], empty, 2, m, theta[0, y], tern[0, y], hysteresis,
+                            changed = _gradient_row(v[t, y], empty, 2, m, theta[0, y], offset[0, y], tern[0, y], hysteresis,
                                                     True, g_new, t_new, idx)
                         else:
-                            changed = _gradient_row(v[t, y], empty, 1, m, theta[0, y], tern[0, y], hysteresis,
+                            changed = _gradient_row(v[t, y], empty, 1, m, theta[0, y], offset[0, y], tern[0, y], hysteresis,
                                                     False, g_new, t_new, idx)
                     else:
                         if y == H - 1 or (rc and y % 2 == 1):
@@ -296,10 +306,10 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, hysteresis, rc, int
                         if rc:
                             # Mean of G_Y(y) and G_Y(y + 1) = (v[y + 2] - v[y]) / 2 (G_Y of the last row is 0).
                             there = v[t, y + 2] if y + 2 < H else v[t, y + 1]
-                            changed = _gradient_row(v[t, y], there, 1, m, theta[1, y], tern[1, y], hysteresis,
+                            changed = _gradient_row(v[t, y], there, 1, m, theta[1, y], offset[1, y], tern[1, y], hysteresis,
                                                     True, g_new, t_new, idx)
                         else:
-                            changed = _gradient_row(v[t, y], v[t, y + 1], 1, m, theta[1, y], tern[1, y],
+                            changed = _gradient_row(v[t, y], v[t, y + 1], 1, m, theta[1, y], offset[1, y], tern[1, y],
                                                     hysteresis, False, g_new, t_new, idx)
                     if n + changed > cap:  # nothing of this row and axis is written; resume here
                         stopped = True

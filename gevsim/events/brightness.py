@@ -22,7 +22,7 @@ from gevsim import _portable as pm
 from gevsim.events import _kernels
 from gevsim.events._runner import EventBlocks, SampledSignal
 from gevsim.events.types import BRIGHTNESS_DTYPE, empty
-from gevsim.pixel.params import EventParams
+from gevsim.pixel.params import REFERENCE_TEMPERATURE_K, EventParams, thermal_factor
 
 
 def per_pixel_thresholds(shape: Sequence[int], params: EventParams, *,
@@ -34,12 +34,19 @@ def per_pixel_thresholds(shape: Sequence[int], params: EventParams, *,
     return np.maximum(on, 0.05 * params.threshold_on_ln), np.maximum(off, 0.05 * params.threshold_off_ln)
 
 
-def leak_rates(shape: Sequence[int], params: EventParams, *, rng: np.random.Generator) -> np.ndarray:
-    """Per-pixel leak event rates (Hz): lognormal with mean ``leak_rate_hz`` and relative sigma
-    ``leak_rate_spread`` (a clipped normal left 2.3 % of pixels at 0 for a spread of 0.5)."""
+def leak_rates(shape: Sequence[int], params: EventParams, *, rng: np.random.Generator,
+               temperature_k: float = REFERENCE_TEMPERATURE_K) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel leak event rates: (dark rate in Hz, rate per ampere of photocurrent in Hz/A).
+
+    Each pixel's leak is its reset switch's junction leakage: a lognormal factor with mean 1 and
+    relative sigma ``leak_rate_spread`` (a clipped normal left 2.3 % of pixels at 0 for a spread of
+    0.5) times ``leak_rate_hz`` (doubling every ``leak_doubling_k`` above the reference temperature)
+    in the dark and ``leak_light_hz_per_a`` for the parasitic photocurrent."""
     z = rng.standard_normal(shape)
     sigma = math.sqrt(float(pm.log(1.0 + params.leak_rate_spread * params.leak_rate_spread)))
-    return params.leak_rate_hz * pm.exp(sigma * z - 0.5 * sigma * sigma)
+    factor = pm.exp(sigma * z - 0.5 * sigma * sigma)
+    dark_hz = params.leak_rate_hz * thermal_factor(temperature_k, params.leak_doubling_k)
+    return dark_hz * factor, params.leak_light_hz_per_a * factor
 
 
 class BrightnessEmulator:
@@ -55,12 +62,15 @@ class BrightnessEmulator:
         accumulator at a uniformly random phase (its level between 0 and one ON threshold below
         the first sample), so leak events come at their steady rate from the start. True: every
         level starts at the first sample (no leak event before 1 / leak rate).
+    temperature_k : the sensor's temperature (scales the dark leak, see :func:`leak_rates`).
+    light_leak : the signal is the log photocurrent, so the leak may grow with exp(signal)
+        (``leak_light_hz_per_a``); False where the signal is something else (a centre-surround difference).
     """
 
     dtype = BRIGHTNESS_DTYPE
 
     def __init__(self, shape: Sequence[int], params: EventParams, *, rng: np.random.Generator,
-                 cold_start: bool = False):
+                 cold_start: bool = False, temperature_k: float = REFERENCE_TEMPERATURE_K, light_leak: bool = True):
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         self.clock = SampledSignal(shape)
@@ -69,10 +79,14 @@ class BrightnessEmulator:
         on, off = per_pixel_thresholds(self.shape, params, rng=rng)
         self.threshold_on_ln = on.ravel()
         self.threshold_off_ln = off.ravel()
-        self.leak_ln_per_s = (leak_rates(self.shape, params, rng=rng).ravel() * self.threshold_on_ln)
+        dark_hz, light_hz_per_a = leak_rates(self.shape, params, rng=rng, temperature_k=temperature_k)
+        self.leak_ln_per_s = dark_hz.ravel() * self.threshold_on_ln
+        self.leak_light = (light_hz_per_a.ravel() * self.threshold_on_ln if light_leak and params.leak_light_hz_per_a > 0
+                           else np.zeros(0))
         n = self.threshold_on_ln.size
         phase = rng.random(n)  # drawn in either mode, so that the key below does not depend on it
-        self.leak_phase = np.zeros(n) if cold_start else np.where(self.leak_ln_per_s > 0.0, phase, 0.0)
+        leaks = (self.leak_ln_per_s > 0.0) | (params.leak_light_hz_per_a > 0 and light_leak)
+        self.leak_phase = np.zeros(n) if cold_start else np.where(leaks, phase, 0.0)
         self.reset_key = np.uint64(rng.integers(0, 2**63, dtype=np.int64))
         self.ref = np.zeros(n)
         self.v_prev = np.zeros(n)
@@ -101,7 +115,8 @@ class BrightnessEmulator:
 
         def kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
             _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end, ref, v_prev, last_t, count,
-                                self.threshold_on_ln, self.threshold_off_ln, self.leak_ln_per_s, p.refractory_s,
+                                self.threshold_on_ln, self.threshold_off_ln, self.leak_ln_per_s, self.leak_light,
+                                p.refractory_s,
                                 p.reset_noise_ln, self.reset_key, self._px_x, self._px_y, buf_t, buf_x, buf_y,
                                 buf_p, region, order)
 

@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike
 from gevsim import _portable as pm
 from gevsim._validate import real
 from gevsim.events.brightness import BrightnessEmulator
+from gevsim.pixel.params import REFERENCE_TEMPERATURE_K
 from gevsim.pixel.params import EventParams
 
 COLUMN_BLOCK = 16  # columns per parallel work item of the y solves
@@ -153,13 +154,17 @@ class CenterSurroundEmulator:
     surround_length_px : space constant of the diffuser, in pixels.
     surround_tau_s : time constant of the surround (0: instantaneous).
     rng : draws the fixed patterns of the event circuit.
+    cold_start, temperature_k : as :class:`~gevsim.events.BrightnessEmulator` (the light-dependent
+        leak is left out: the signal is a difference, not a photocurrent's log).
     """
 
     def __init__(self, shape: Sequence[int], params: EventParams, *, surround_length_px: float = 2.0,
-                 surround_tau_s: float = 1e-3, rng: np.random.Generator, cold_start: bool = False):
+                 surround_tau_s: float = 1e-3, rng: np.random.Generator, cold_start: bool = False,
+                 temperature_k: float = REFERENCE_TEMPERATURE_K):
         real(surround_length_px, "surround_length_px", low=0.0, low_open=True)
         real(surround_tau_s, "surround_tau_s", low=0.0)
-        self.dvs = BrightnessEmulator(shape, params, rng=rng, cold_start=cold_start)
+        self.dvs = BrightnessEmulator(shape, params, rng=rng, cold_start=cold_start, temperature_k=temperature_k,
+                                      light_leak=False)
         self.shape = self.dvs.shape
         self.surround_tau_s = float(surround_tau_s)
         self.c = float(surround_length_px) * float(surround_length_px)

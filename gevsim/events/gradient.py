@@ -105,6 +105,11 @@ class GradientEmulator:
     hysteresis_ln : comparator hysteresis (same units): a +-1 state returns to 0 only when
         |G| < Theta - hysteresis_ln. 0 (default) is the paper's definition; a design option
         against noise-induced chatter of comparators sitting near their threshold.
+    offset_sigma_ln : sigma of the comparators' input offsets (same units; a fixed pattern drawn
+        with ``rng``): comparator (a, y, x) compares G - offset with +-Theta, so an offset moves
+        both of its thresholds the same way (a physical comparator's offset, unlike
+        ``mismatch_sigma_ln``, which widens or narrows |Theta|). A sensor preset gives it in volts
+        (``comparator_offset_v``), divided by n U_T.
     """
 
     dtype = GRADIENT_DTYPE
@@ -112,7 +117,7 @@ class GradientEmulator:
     def __init__(self, shape: Sequence[int], *, thresholds_ln: Sequence[float] = LN_THRESHOLDS,
                  theta: ArrayLike | None = None, mismatch_sigma_ln: float = 0.0,
                  rc: bool = False, interpolate: bool = True, hysteresis_ln: float = 0.0,
-                 rng: np.random.Generator | None = None):
+                 offset_sigma_ln: float = 0.0, rng: np.random.Generator | None = None):
         self.clock = SampledSignal(shape)
         self.shape = self.clock.shape
         if rc:
@@ -128,6 +133,11 @@ class GradientEmulator:
                 raise TypeError("threshold mismatch needs rng=numpy.random.Generator")
             theta2 = np.maximum(theta2 + mismatch_sigma_ln * rng.standard_normal(theta2.shape), 0.05 * theta2)
         self.theta = theta2  # (2, H, W): comparators of the X and Y axes
+        self.offset = np.zeros_like(theta2)
+        if real(offset_sigma_ln, "offset_sigma_ln", low=0.0):
+            if not isinstance(rng, np.random.Generator):
+                raise TypeError("comparator offsets need rng=numpy.random.Generator")
+            self.offset = offset_sigma_ln * rng.standard_normal(theta2.shape)
         self.rc = bool(rc)
         self.interpolate = bool(interpolate)
         self.hysteresis = real(hysteresis_ln, "hysteresis_ln", low=0.0, high=float(base.min()), high_open=True)
@@ -139,6 +149,7 @@ class GradientEmulator:
     def ternary_of(self, image: np.ndarray) -> np.ndarray:
         """Ternary gradients (2, H, W) of one image with this emulator's thresholds."""
         gx, gy = gradients(image, rc=self.rc)
+        gx, gy = gx - self.offset[AXIS_X], gy - self.offset[AXIS_Y]
         t = np.stack([ternary(gx, self.theta[AXIS_X]), ternary(gy, self.theta[AXIS_Y])])
         if self.rc:  # one comparator per pair, at the even position; the odd ones hold 0
             t[AXIS_X, :, 1::2] = 0
@@ -157,13 +168,13 @@ class GradientEmulator:
         g_prev, state = self.g_prev.copy(), self.state.copy()
         if first:
             gx, gy = gradients(v[0], rc=self.rc)
-            g_prev = np.stack([gx, gy])
+            g_prev = np.stack([gx, gy]) - self.offset
             state = self.ternary_of(v[0])
             self.initial_state = state.copy()
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
 
         def kernel(a, b, us_end, *bufs_and_region):
-            _kernels.gradient(v[a:b], t_start[a:b], t_end[a:b], us_end, g_prev, state, self.theta,
+            _kernels.gradient(v[a:b], t_start[a:b], t_end[a:b], us_end, g_prev, state, self.theta, self.offset,
                               self.hysteresis, self.rc, self.interpolate, EVENT_TABLE, *bufs_and_region)
 
         events = self.blocks.collect(kernel, t_start, t_end)

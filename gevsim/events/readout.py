@@ -6,6 +6,13 @@ wait longer than ``max_delay_s`` is dropped. Under lamp flicker this decides wha
 100 Hz flicker at 346x260 requests 65-91 Meps (sensor-physics audit), a DAVIS346 reads about 12 Meps
 (iniVation biasing guide). Delays and drops are counted, never silent, and events still queued
 when a run ends are counted as pending.
+
+Before the arbiter each event is delayed by the pixel's comparator and handshake: ``latency_s``
+plus a normal spread of sigma ``latency_jitter_s`` (truncated at +-3 sigma and at zero delay;
+Lichtsteiner et al. 2008 measure a 15 us latency floor at bright light, IEBCS defaults to 100 us
+with 10 us jitter). The spread reorders events, so a chunk's delayed events are held back until no
+later request can come before them. The deviate of a stream's i-th event is keyed by (key, i):
+results do not depend on the chunks.
 """
 
 from __future__ import annotations
@@ -15,7 +22,11 @@ import math
 import numpy as np
 from numba import njit
 
+from gevsim.pixel._kernels import normal, pixel_bits, stream_key
 from gevsim.pixel.params import ReadoutParams
+
+#: The latency spread is truncated at this many sigma.
+JITTER_TRUNCATION = 3.0
 
 __all__ = ["Readout", "ReadoutParams"]
 
@@ -46,11 +57,34 @@ def _serve(t_us, service_us, max_delay_us, free_us, keep, t_out):
     return free_us, delayed, dropped, total, longest
 
 
-class Readout:
-    """Stateful readout of one event stream across chunks (events of a chunk in time order)."""
+@njit(cache=True)
+def _delays_us(n, first, key, latency_us, jitter_us):
+    """Delays (us, float) of a stream's events first .. first + n - 1: the latency plus the
+    jitter times a normal deviate keyed by (key, event index), truncated at
+    +-JITTER_TRUNCATION and at 0."""
+    out = np.empty(n)
+    for i in range(n):
+        z = 0.0
+        if jitter_us > 0.0:
+            z = np.float64(normal(pixel_bits(stream_key(key, first + i, 7), 0)))
+            z = min(max(z, -JITTER_TRUNCATION), JITTER_TRUNCATION)
+        out[i] = max(latency_us + jitter_us * z, 0.0)
+    return out
 
-    def __init__(self, params: ReadoutParams):
+
+class Readout:
+    """Stateful readout of one event stream across chunks (events of a chunk in time order).
+
+    Parameters
+    ----------
+    params : the sensor's readout.
+    key : keys the latency spread (a stream's own; any integer when ``latency_jitter_s`` is 0).
+    """
+
+    def __init__(self, params: ReadoutParams, *, key: int = 0):
         self.params = params
+        self.key = np.uint64(key)
+        self.held: np.ndarray | None = None  # delayed events not yet released (sorted by their new time)
         self.free_us = -math.inf
         self.requested = self.delayed = self.dropped = self.pending = 0
         self.total_delay_us = self.longest_delay_us = 0.0
@@ -59,12 +93,43 @@ class Readout:
     def limited(self) -> bool:
         return math.isfinite(self.params.max_rate_eps)
 
-    def process(self, events: np.ndarray, *, end_us: int | None = None) -> np.ndarray:
-        """The events as read out: delayed to the bus's pace (``t`` in whole us), the ones that
-        waited too long left out, and those read after ``end_us`` (the run's end) left out as
-        pending; counts updated."""
+    @property
+    def delays(self) -> bool:
+        return self.params.latency_s > 0 or self.params.latency_jitter_s > 0
+
+    def _latency(self, events: np.ndarray, until_us: float | None) -> np.ndarray:
+        """The events delayed by the pixel latency, merged with those held from earlier chunks, in
+        time order; those that a later request (at or after ``until_us``; None: there is none) could
+        still precede are held back."""
+        p = self.params
+        jitter_us = p.latency_jitter_s * 1e6
+        delay = _delays_us(len(events), self.requested - len(events), self.key, p.latency_s * 1e6, jitter_us)
+        moved = events.copy()
+        moved["t"] = np.floor(events["t"] + delay).astype(np.int64)
+        if self.held is not None and len(self.held):
+            moved = np.concatenate([self.held, moved])
+        moved = moved[np.argsort(moved["t"], kind="stable")]
+        if until_us is None:
+            self.held = None
+            return moved
+        earliest = until_us + max(p.latency_s * 1e6 - JITTER_TRUNCATION * jitter_us, 0.0)
+        cut = int(np.searchsorted(moved["t"], math.floor(earliest), side="left"))
+        self.held = moved[cut:]
+        return moved[:cut]
+
+    def process(self, events: np.ndarray, *, end_us: int | None = None, until_us: float | None = None) -> np.ndarray:
+        """The events as read out: delayed by the pixel latency, then to the bus's pace (``t`` in
+        whole us), the ones that waited too long left out, and those read after ``end_us`` (the run's
+        end) left out as pending; counts updated. ``until_us``: every later request comes at or after
+        it (the chunk's end; None: this is the last chunk)."""
         self.requested += len(events)
+        if self.delays:
+            events = self._latency(events, until_us)
         if not self.limited or len(events) == 0:
+            if end_us is not None and self.delays:
+                late = events["t"] > end_us
+                self.pending += int(np.count_nonzero(late))
+                events = events[~late]
             return events
         keep = np.empty(len(events), np.bool_)
         t_out = np.empty(len(events), np.int64)

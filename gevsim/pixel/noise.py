@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 from scipy.constants import elementary_charge
 
 from gevsim import _portable as pm
-from gevsim.pixel.params import NoiseParams
+from gevsim.pixel.params import REFERENCE_TEMPERATURE_K, NoiseParams, thermal_factor
 
 
 def shot_noise_variance_ln(photocurrent_a: ArrayLike, cutoff_hz: ArrayLike) -> np.ndarray:
@@ -57,16 +57,28 @@ def output_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndar
     return hz, var
 
 
-def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *,
-                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def dark_current_a(noise: NoiseParams, temperature_k: float = REFERENCE_TEMPERATURE_K) -> float:
+    """Mean dark current (A) at ``temperature_k``: ``dark_current_a`` (stated at
+    :data:`~gevsim.pixel.params.REFERENCE_TEMPERATURE_K`) doubling every ``dark_current_doubling_k``."""
+    return noise.dark_current_a * thermal_factor(temperature_k, noise.dark_current_doubling_k)
+
+
+def shot_noise_factor(noise: NoiseParams) -> float:
+    """How many equal shot-noise sources the photocurrent drives: the photodiode, and with
+    ``feedback_shot_noise`` the photoreceptor's feedback transistor (same current, variance x2)."""
+    return 2.0 if noise.feedback_shot_noise else 1.0
+
+
+def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *, rng: np.random.Generator,
+                  temperature_k: float = REFERENCE_TEMPERATURE_K) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel photocurrent gain (PRNU) and dark current (DSNU, lognormal), drawn once.
 
-    The lognormal is scaled so that the mean dark current is ``dark_current_a``.
+    The lognormal is scaled so that the mean dark current is :func:`dark_current_a` at ``temperature_k``.
     """
     gain = 1.0 + noise.prnu * rng.standard_normal(shape)
     gain = np.clip(gain, 0.0, None)
     s = noise.dark_current_spread
-    dark = noise.dark_current_a * pm.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
+    dark = dark_current_a(noise, temperature_k) * pm.exp(s * rng.standard_normal(shape) - 0.5 * s * s)
     return gain, dark
 
 
@@ -89,7 +101,7 @@ def coarsest_step_s(photoreceptor: Any, noise: NoiseParams, max_photocurrent_a: 
         return None
     fast = []
     if noise.shot_noise:
-        fast.append(float(photoreceptor.cutoff_at(max_photocurrent_a + noise.dark_current_a)))
+        fast.append(float(photoreceptor.cutoff_at(max_photocurrent_a + dark_current_a(noise, photoreceptor.temperature_k))))
     if noise.read_noise_v > 0:
         fast.append(noise.read_noise_bandwidth_hz)
     if not fast:

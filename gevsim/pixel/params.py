@@ -20,6 +20,20 @@ if TYPE_CHECKING:  # numpy is imported where it is used
     from numpy.typing import ArrayLike
 
 
+#: Temperature (K) at which presets state dark current and leak rates (27 degC).
+REFERENCE_TEMPERATURE_K = 300.0
+
+
+def thermal_factor(temperature_k: float, doubling_k: float) -> float:
+    """2 ** ((T - T_ref) / doubling_k): how much a leakage current grows from
+    :data:`REFERENCE_TEMPERATURE_K` to ``temperature_k`` (1 for an infinite doubling interval)."""
+    if math.isinf(doubling_k):
+        return 1.0
+    from gevsim._portable import exp_scalar
+
+    return float(exp_scalar((temperature_k - REFERENCE_TEMPERATURE_K) / doubling_k * 0.6931471805599453))  # ln 2
+
+
 @dataclass(frozen=True)
 class PhotoreceptorParams(FromTable):
     """Logarithmic photoreceptor V = V0 + n U_T ln(I_ph + I_dark) with a first-order
@@ -91,6 +105,14 @@ class NoiseParams(FromTable):
     dark_current_spread : DSNU, lognormal sigma of the per-pixel dark current (fixed pattern).
     prnu : photo response non-uniformity, relative sigma of the per-pixel gain (fixed pattern).
     flicker_noise_v : rms of optional 1/f voltage noise between the two corner frequencies (0: off).
+    feedback_shot_noise : the photoreceptor's feedback transistor carries the photocurrent too and adds
+        equal shot noise (variance x2; Graca, McReynolds & Delbruck 2023: the photoreceptor's noise is
+        within 2x of photon shot noise).
+    dark_current_doubling_k : the dark current doubles every this many kelvin above
+        :data:`REFERENCE_TEMPERATURE_K` (inf: no temperature dependence).
+    dc_offset_v : sigma (volts) of the photoreceptors' DC output offsets (fixed pattern, from the
+        feedback transistors' threshold mismatch). A DVS is AC-coupled and does not see it; gradient
+        comparators and the centre-surround DVS compare neighbours' levels and do.
     """
 
     TABLE = "noise"
@@ -104,9 +126,17 @@ class NoiseParams(FromTable):
     flicker_noise_v: float = 0.0
     flicker_noise_low_hz: float = 1.0
     flicker_noise_high_hz: float = 1000.0
+    feedback_shot_noise: bool = False
+    dark_current_doubling_k: float = math.inf
+    dc_offset_v: float = 0.0
 
     def __post_init__(self):
         n = type(self).__name__
+        if not isinstance(self.feedback_shot_noise, bool):
+            raise FieldError("feedback_shot_noise",
+                             f"{n}.feedback_shot_noise must be true or false, got {self.feedback_shot_noise!r}")
+        real(self.dark_current_doubling_k, "dark_current_doubling_k", low=0, low_open=True, allow_inf=True)
+        real(self.dc_offset_v, "dc_offset_v", low=0)
         if not isinstance(self.shot_noise, bool):
             raise FieldError("shot_noise", f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
         for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "flicker_noise_v"):
@@ -133,8 +163,14 @@ class EventParams(FromTable):
         are forgotten, Lichtsteiner et al. 2008).
     reset_noise_ln : sigma (ln units) of the level's error at each release from reset (kTC and
         charge-injection noise; IEBCS redraws a threshold of sigma 0.01-0.02 after every event).
-    leak_rate_hz : mean rate of leak (ON) events per pixel; leak_rate_spread its relative sigma
-        (lognormal, so that no pixel's rate is clipped to zero).
+    leak_rate_hz : mean rate of leak (ON) events per pixel in the dark at :data:`REFERENCE_TEMPERATURE_K`;
+        leak_rate_spread its relative sigma (lognormal, so that no pixel's rate is clipped to zero).
+    leak_light_hz_per_a : leak rate added per ampere of photocurrent (parasitic photocurrent in the reset
+        switch's junction: leak rises with light; Nozaki & Delbruck, IEEE TED 2017).
+    leak_doubling_k : the leak rate doubles every this many kelvin above :data:`REFERENCE_TEMPERATURE_K`
+        (junction leakage; inf: no temperature dependence).
+    comparator_offset_v : sigma (volts) of the gradient comparators' input offsets (fixed pattern):
+        an offset moves a comparator's +theta and -theta together.
     """
 
     TABLE = "events"
@@ -146,8 +182,14 @@ class EventParams(FromTable):
     reset_noise_ln: float = 0.0
     leak_rate_hz: float = 0.0
     leak_rate_spread: float = 0.0
+    leak_light_hz_per_a: float = 0.0
+    leak_doubling_k: float = math.inf
+    comparator_offset_v: float = 0.0
 
     def __post_init__(self):
+        real(self.leak_light_hz_per_a, "leak_light_hz_per_a", low=0)
+        real(self.leak_doubling_k, "leak_doubling_k", low=0, low_open=True, allow_inf=True)
+        real(self.comparator_offset_v, "comparator_offset_v", low=0)
         real(self.threshold_on_ln, "threshold_on_ln", low=0, low_open=True)
         real(self.threshold_off_ln, "threshold_off_ln", low=0, low_open=True)
         for name in ("threshold_mismatch_ln", "refractory_s", "reset_noise_ln", "leak_rate_hz", "leak_rate_spread"):
@@ -162,13 +204,21 @@ class ReadoutParams(FromTable):
     ----------
     max_rate_eps : events per second the arbiter and bus deliver at the most (``inf``: no limit).
     max_delay_s : the longest an event waits to be read before it is dropped (``inf``: never).
+    latency_s : the fixed delay from a comparator's crossing to its request reaching the arbiter
+        (comparator, handshake): the latency floor.
+    latency_jitter_s : sigma of that delay's spread from event to event (a normal, truncated at
+        +-3 sigma and at zero delay).
     """
 
     TABLE = "readout"
 
     max_rate_eps: float = math.inf
     max_delay_s: float = math.inf
+    latency_s: float = 0.0
+    latency_jitter_s: float = 0.0
 
     def __post_init__(self):
+        real(self.latency_s, "latency_s", low=0)
+        real(self.latency_jitter_s, "latency_jitter_s", low=0)
         real(self.max_rate_eps, "max_rate_eps", low=0, low_open=True, allow_inf=True)
         real(self.max_delay_s, "max_delay_s", low=0, allow_inf=True)

@@ -20,7 +20,7 @@ from gevsim import _portable as pm
 from gevsim._finite import count_invalid
 from gevsim.pixel import _kernels
 from gevsim.pixel._cascade import separated_hz
-from gevsim.pixel.noise import fixed_pattern, output_noise_poles
+from gevsim.pixel.noise import fixed_pattern, output_noise_poles, shot_noise_factor
 from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
 from gevsim.timebase import check_chunk
 
@@ -55,7 +55,7 @@ class Photoreceptor:
             raise ValueError("shot noise needs a finite photoreceptor bandwidth (its variance grows with it)")
         self.shape = tuple(int(s) for s in shape)
         self.params, self.noise = params, noise
-        gain, dark = fixed_pattern(self.shape, noise, rng=rng)
+        gain, dark = fixed_pattern(self.shape, noise, rng=rng, temperature_k=params.temperature_k)
         self.gain = gain.ravel().astype(np.float64)
         self.dark_a = dark.ravel().astype(np.float64)
         self.key = int(rng.integers(0, 2**64, dtype=np.uint64))  # of the 64-bit counter-based noise generator
@@ -65,6 +65,11 @@ class Photoreceptor:
         self.n_read = 1 if noise.read_noise_v > 0 else 0  # fn[0] is the read noise
         self.start_z = rng.standard_normal((3, n))  # the noise's stationary start (drawn in either mode)
         self.cold_start = bool(cold_start)
+        # The photoreceptors' DC offsets (ln units), drawn after everything else so that a preset
+        # without them draws the same numbers as before they existed.
+        self.offset_ln = (None if noise.dc_offset_v == 0 else
+                          (noise.dc_offset_v / params.volts_per_ln * rng.standard_normal(n)).astype(np.float32))
+        self.shot_q = math.pi * elementary_charge * shot_noise_factor(noise) if noise.shot_noise else 0.0
         self.v1 = np.zeros(n)
         self.v2 = np.zeros(n)
         self.t_s = float(t0_s)
@@ -144,7 +149,7 @@ class Photoreceptor:
             fc = p.cutoff_at(itot)  # as the kernel: proportional to the total current, capped
             if f_out is not None:  # as the kernel: a pole within POLE_GAP of the output pole is moved to it
                 fc = separated_hz(fc, f_out)
-            var = math.pi * elementary_charge * fc / itot
+            var = self.shot_q * fc / itot
             alpha = 2.0 * math.pi * fc
             xn = np.sqrt(var) * self.start_z[0]
             v1 += xn
@@ -189,8 +194,10 @@ class Photoreceptor:
         out = np.empty(flat.shape, np.float32)
         _kernels.photoreceptor(
             flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint64(self.key), self.step,
-            *self._bandwidth(), math.pi * elementary_charge if self.noise.shot_noise else 0.0, self.n_read, out,
+            *self._bandwidth(), self.shot_q, self.n_read, out,
         )
+        if self.offset_ln is not None:  # the DC offsets pass no filter: they are constant
+            out += self.offset_ln
         self.v1, self.v2, self.fn = v1, v2, fn
         self.t_s = float(t[-1])
         self.step += len(t)

@@ -20,7 +20,7 @@ from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams, R
 
 TABLES = ("sensor", "photoreceptor", "noise", "events", "aps", "readout")
 SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_factor",
-               "bandwidth_reference_spectrum")
+               "bandwidth_reference_spectrum", "quantum_efficiency")
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,14 @@ class SensorPreset:
     aps: ApsParams | None
     source: str
     readout: ReadoutParams = ReadoutParams()  # no limit unless the preset's [readout] says
+    quantum_efficiency: str = "fsi"  # a name in gevsim.optics.QE_CURVES
+
+    @property
+    def qe(self) -> tuple:
+        """The (wavelengths_nm, qe) table of the sensor's silicon."""
+        from gevsim.optics import QE_CURVES
+
+        return QE_CURVES[self.quantum_efficiency]
 
     def ideal(self) -> SensorPreset:
         """The same sensor with every noise source and mismatch off (counterfactual runs)."""
@@ -107,6 +115,12 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         r.number(sensor, key, "sensor", positive=True, integer=True)
     for key, upper in (("pixel_pitch_m", 1e-3), ("fill_factor", 1.0)):
         r.number(sensor, key, "sensor", positive=True, maximum=upper)
+    from gevsim.optics import QE_CURVES
+
+    qe_name = sensor.get("quantum_efficiency", "fsi")
+    if qe_name not in QE_CURVES:
+        raise ConfigError(f"unknown quantum_efficiency {qe_name!r}{suggest(str(qe_name), QE_CURVES)}; choose from "
+                          f"{', '.join(QE_CURVES)}", source=src, key="sensor.quantum_efficiency")
     receptor = dict(raw["photoreceptor"])
     if "cutoff_ref_lux" in receptor:
         lux = receptor.pop("cutoff_ref_lux")
@@ -116,7 +130,7 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         r.number(raw["photoreceptor"], "cutoff_ref_lux", "photoreceptor", positive=True)
         receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
             lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
-            spectrum=sensor.get("bandwidth_reference_spectrum", "D65"), source=src)
+            spectrum=sensor.get("bandwidth_reference_spectrum", "D65"), source=src, qe=QE_CURVES[qe_name])
     aps = raw.get("aps")
     return SensorPreset(
         name=str(sensor.get("name", path.stem)),
@@ -131,13 +145,21 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         aps=None if aps is None else ApsParams.from_table(aps, source=src),
         source=src,
         readout=ReadoutParams.from_table(raw.get("readout", {}), source=src),
+        quantum_efficiency=qe_name,
     )
 
 
 def lux_to_photocurrent_a(lux: float, *, pixel_pitch_m: float, fill_factor: float, spectrum: str = "D65",
-                          source: str | None = None) -> float:
-    """Photocurrent of one pixel at a focal-plane illuminance, for a lamp spectrum and the default silicon QE."""
+                          source: str | None = None, qe: Any = None) -> float:
+    """Photocurrent of one pixel at a focal-plane illuminance, for a lamp spectrum and a silicon QE
+    (None: the default FSI curve)."""
     from gevsim.optics import lamp_spectrum, responsivity_a_per_lm
 
     sd = lamp_spectrum(spectrum, source=source, key="sensor.bandwidth_reference_spectrum")
-    return float(lux * pixel_pitch_m * pixel_pitch_m * fill_factor * responsivity_a_per_lm(sd))
+    return float(lux * pixel_pitch_m * pixel_pitch_m * fill_factor * responsivity_a_per_lm(sd, qe=qe))
+
+
+def chip_lux_per_a(preset: SensorPreset, spectrum: str = "D65") -> float:
+    """Focal-plane illuminance (lux) per ampere of one pixel's photocurrent, for a preset and a lamp spectrum."""
+    return 1.0 / lux_to_photocurrent_a(1.0, pixel_pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor,
+                                       spectrum=spectrum, qe=preset.qe)

@@ -1,0 +1,159 @@
+"""Measurements of a sensor preset on uniform static light, as a test bench would make them.
+
+Each function runs gevsim's own pixel and event models (no shortcut formulas) on a small uniform
+array under D65 light at a stated *chip* (focal-plane) illuminance and returns what a measurement
+would report, with its uncertainty.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gevsim.events import BrightnessEmulator
+from gevsim.pixel import Photoreceptor
+from gevsim.pixel.noise import coarsest_step_s
+from gevsim.pixel.presets import SensorPreset, lux_to_photocurrent_a
+
+#: Two-sided 95 % normal quantile.
+Z95 = 1.959963984540054
+
+
+@dataclass(frozen=True)
+class Rate:
+    """An event rate (ev/px/s) with its 95 % interval [low, high] (never below 0)."""
+
+    value: float
+    low: float
+    high: float
+
+    def __str__(self) -> str:
+        return f"{self.value:.3g} [{self.low:.3g}, {self.high:.3g}]"
+
+
+def rate_interval(counts: np.ndarray, duration_s: float) -> Rate:
+    """Mean events per pixel per second and its 95 % interval from per-pixel counts: the normal
+    interval of the mean over pixels (pixels differ by their fixed patterns), at least as wide as
+    the Poisson interval of the total (Wilson-like, 1.96 sqrt(N)); with no event at all, [0, 3 / (n T)]
+    (the rule of three)."""
+    c = np.asarray(counts, float).ravel()
+    n, total = c.size, float(c.sum())
+    if total == 0:
+        return Rate(0.0, 0.0, 3.0 / (n * duration_s))
+    mean = total / (n * duration_s)
+    se_pixels = float(np.std(c, ddof=1)) / math.sqrt(n) / duration_s if n > 1 else 0.0
+    se_poisson = math.sqrt(total) / (n * duration_s)
+    se = max(se_pixels, se_poisson)
+    return Rate(mean, max(mean - Z95 * se, 0.0), mean + Z95 * se)
+
+
+def photocurrent_a(preset: SensorPreset, chip_lux: float) -> float:
+    """One pixel's photocurrent (A) at a D65 chip illuminance."""
+    return chip_lux * lux_to_photocurrent_a(1.0, pixel_pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor,
+                                            qe=preset.qe)
+
+
+def default_step_s(preset: SensorPreset, chip_lux: float) -> float:
+    """The step the driver would take: the coarsest at which noise-event rates converge, at most 20 us."""
+    step = coarsest_step_s(preset.photoreceptor, preset.noise, photocurrent_a(preset, chip_lux))
+    return min(2e-5, step) if step is not None else 2e-5
+
+
+def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[int, int] = (32, 32),
+                        duration_s: float = 10.0, seed: int = 0, step_s: float | None = None,
+                        chunk_steps: int = 5000) -> tuple[Rate, Rate]:
+    """DVS background activity (ON, OFF) in ev/px/s under constant uniform light: a sensor that has
+    been running (settled photoreceptor, stationary noise, random leak phases)."""
+    step = default_step_s(preset, chip_lux) if step_s is None else float(step_s)
+    n = int(math.ceil(duration_s / step))
+    seeds = np.random.SeedSequence(seed).spawn(2)
+    pr = Photoreceptor(shape, params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(seeds[0]))
+    dvs = BrightnessEmulator(shape, preset.events, rng=np.random.default_rng(seeds[1]),
+                             temperature_k=preset.photoreceptor.temperature_k)
+    level = np.full((1,) + shape, photocurrent_a(preset, chip_lux))
+    pr.settle(level, np.array([step]))
+    on = np.zeros(shape[0] * shape[1], np.int64)
+    off = np.zeros_like(on)
+    for a in range(0, n, chunk_steps):
+        t = step * np.arange(a + 1, min(a + chunk_steps, n) + 1)
+        ev = dvs.process(pr.process(np.broadcast_to(level, (len(t),) + shape), t), t)
+        flat = ev["y"].astype(np.int64) * shape[1] + ev["x"]
+        on += np.bincount(flat[ev["p"]], minlength=on.size)
+        off += np.bincount(flat[~ev["p"]], minlength=off.size)
+    span = n * step
+    return rate_interval(on, span), rate_interval(off, span)
+
+
+def _ideal_photoreceptor(preset: SensorPreset, shape: tuple[int, int] = (1, 1)) -> Photoreceptor:
+    """The preset's photoreceptor without noise or fixed patterns (a bench measurement averages them out)."""
+    ideal = preset.ideal()
+    return Photoreceptor(shape, params=ideal.photoreceptor, noise=ideal.noise, rng=np.random.default_rng(0))
+
+
+def gain_at(preset: SensorPreset, chip_lux: float, frequency_hz: float, *, depth: float = 0.01) -> float:
+    """Small-signal gain of the noise-free pixel output (photoreceptor and output pole) at one
+    frequency: a ``depth`` sinusoidal modulation of the photocurrent, run 12 periods from the settled
+    state, the output's amplitude over the last 4 fitted against the input's ln-amplitude."""
+    pr = _ideal_photoreceptor(preset)
+    i0 = photocurrent_a(preset, chip_lux)
+    per = 1.0 / frequency_hz
+    n = 2400
+    dt = 12.0 * per / n
+    t = dt * np.arange(1, n + 1)
+    from gevsim import _portable as pm
+
+    mid = t - 0.5 * dt
+    cur = i0 * (1.0 + depth * pm.sin(2.0 * math.pi * frequency_hz * mid))
+    pr.settle(np.full((1, 1, 1), i0), np.array([dt]))
+    v = pr.process(cur.reshape(n, 1, 1), t).reshape(n).astype(np.float64)
+    tail = slice(n - n // 3, n)
+    w = 2.0 * math.pi * frequency_hz * mid[tail]
+    basis = np.stack([pm.sin(w), pm.cos(w), np.ones_like(w)], axis=1)
+    coef, *_ = np.linalg.lstsq(basis, v[tail], rcond=None)
+    # ln(1 + d sin) has amplitude ~d (to d^2/8): the reference is the same fit of the input's ln.
+    ref, *_ = np.linalg.lstsq(basis, pm.log(cur[tail] / i0), rcond=None)
+    return float(math.hypot(coef[0], coef[1]) / math.hypot(ref[0], ref[1]))
+
+
+def cutoff_hz(preset: SensorPreset, chip_lux: float, *, tolerance: float = 0.005) -> float:
+    """The measured -3 dB frequency (gain 1/sqrt 2) of the noise-free pixel output at a chip
+    illuminance, by bisection in log frequency to ``tolerance`` relative."""
+    lo, hi = 1e-3, 1e6
+    target = 1.0 / math.sqrt(2.0)
+    while hi / lo > 1.0 + tolerance:
+        mid = math.sqrt(lo * hi)
+        if gain_at(preset, chip_lux, mid) > target:
+            lo = mid
+        else:
+            hi = mid
+    return math.sqrt(lo * hi)
+
+
+def step_latency_s(preset: SensorPreset, chip_lux: float, *, contrast_ln: float = 1.0) -> float:
+    """Latency of the first ON event after a step of ``contrast_ln`` in ln photocurrent (L08's
+    measurement: a flashed LED), noise-free, with nominal thresholds: the photoreceptor's and output
+    pole's delay to the threshold plus the readout's fixed latency (its jitter's mean is ~0)."""
+    ideal = preset.ideal()
+    pr = _ideal_photoreceptor(preset)
+    dvs = BrightnessEmulator((1, 1), ideal.events, rng=np.random.default_rng(0), cold_start=True)
+    i0 = photocurrent_a(preset, chip_lux)
+    fc = float(preset.photoreceptor.cutoff_at(i0 + preset.noise.dark_current_a))
+    dt = min(0.5e-6, 0.002 / fc)
+    n = int(math.ceil(20.0 / (2.0 * math.pi * fc) / dt)) + 2
+    from gevsim import _portable as pm
+
+    level = np.full((1, 1, 1), i0)
+    pr.settle(level, np.array([dt]))
+    t = dt * np.arange(1, n + 1)
+    cur = np.full(n, i0 * float(pm.exp(contrast_ln)))
+    cur[0] = i0  # the first sample sets the memorised level
+    chunk = 20000
+    for a in range(0, n, chunk):
+        tt = t[a:a + chunk]
+        ev = dvs.process(pr.process(cur[a:a + chunk].reshape(-1, 1, 1), tt), tt)
+        on = ev[ev["p"]]
+        if len(on):
+            return float(on["t"][0]) * 1e-6 - float(t[0]) + preset.readout.latency_s
+    return math.inf
