@@ -510,6 +510,16 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=cmd_dataset)
 
+    v = sub.add_parser("validate", help="check sensor presets against published measurements (background activity, "
+                       "bandwidth, latency, mismatch, readout) and against themselves (halved step, shifted start); "
+                       "writes a report with plots and a pass/fail table")
+    v.add_argument("--sensor", action="append", help="a preset name or TOML file (repeatable; default: every shipped "
+                   "preset but 'ideal')")
+    v.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    v.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    v.add_argument("--quick", action="store_true", help="smaller, shorter runs (16x16 px, 3 s per point): wider intervals")
+    v.set_defaults(func=cmd_validate)
+
     s = sub.add_parser("study", help="run (or resume) a study: sweeps with repeats and counterfactuals, intervals, "
                                      "plots and a report")
     s.add_argument("config", help="a study config (experiments/*.toml; keys: docs/config.md)")
@@ -523,6 +533,31 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_study)
     return parser
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from gevsim.pixel import load_preset
+    from gevsim.pixel.presets import preset_names
+    from gevsim.validation.checks import Settings
+    from gevsim.validation.report import validate, write
+
+    names = args.sensor or [n for n in preset_names() if n != "ideal"]
+    presets = [load_preset(n) for n in names]  # every name checked before any run
+    settings = Settings.quick() if args.quick else Settings()
+    results = []
+    for preset in presets:
+        update, close = _progress(f"validate {preset.name}", not args.quiet, unit="check")
+        try:
+            rows, curves = validate(preset, settings=settings, progress=update)
+        finally:
+            close()
+        results.append((preset, rows, curves))
+        failed = [r for r in rows if r.verdict == "fail"]
+        print(f"{preset.name}: {sum(r.verdict == 'pass' for r in rows)} passed, {len(failed)} failed"
+              + "".join(f"\n  FAIL {r.check}: published {r.published}, model {r.model}" for r in failed))
+    report = write(results, args.out, settings)
+    print(f"gevsim: wrote {report}", file=sys.stderr)
+    return 1 if any(r.verdict == "fail" for _, rows, _ in results for r in rows) else 0
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,94 @@
+"""Gradient comparator input offsets and the readout's latency floor and jitter (issue 23)."""
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from gevsim.events import GradientEmulator
+from gevsim.events.readout import JITTER_TRUNCATION, Readout
+from gevsim.events.types import BRIGHTNESS_DTYPE
+from gevsim.pixel.params import ReadoutParams
+
+
+def test_comparator_offsets_give_the_gaussian_ternary_statistics():
+    """A flat image: G = 0, so comparator (a, y, x) is +1 when -offset >= theta, -1 when -offset <= -theta.
+    With offsets of sigma s, each state's share is Phi(-theta / s) (an offset moves +theta and -theta together)."""
+    shape = (128, 128)
+    theta, s = 0.05, 0.03
+    em = GradientEmulator(shape, thresholds_ln=(theta,), offset_sigma_ln=s, rng=np.random.default_rng(0))
+    state = em.ternary_of(np.zeros(shape))
+    comparators = np.concatenate([state[0, :, :-1].ravel(), state[1, :-1, :].ravel()])  # the last column/row hold 0
+    p = norm.cdf(-theta / s)
+    n = comparators.size
+    for value in (1, -1):
+        share = np.mean(comparators == value)
+        assert abs(share - p) < 4 * np.sqrt(p * (1 - p) / n), value
+    # One comparator: it switches at G = offset + theta and G = offset - theta.
+    o = em.offset[0, 5, 5]
+    img = np.zeros(shape)
+    for g, expected in ((o + theta + 1e-9, 1), (o + theta - 1e-9, 0), (o - theta - 1e-9, -1), (o - theta + 1e-9, 0)):
+        img[5, 6] = g
+        assert em.ternary_of(img)[0, 5, 5] == expected
+
+
+def test_offsets_change_events_only_through_the_comparators():
+    """The emulator's events are the ternary code of G - offset: decoding them from the initial state gives
+    the offset comparators' final state."""
+    rng = np.random.default_rng(1)
+    shape = (16, 20)
+    t = 1e-4 * np.arange(1, 201)
+    v = np.cumsum(0.02 * rng.standard_normal((len(t),) + shape), axis=0).astype(np.float32)
+    em = GradientEmulator(shape, thresholds_ln=(0.05, 0.1), offset_sigma_ln=0.04, rng=np.random.default_rng(2))
+    ev = em.process(v, t)
+    from gevsim.events.gradient import decode
+
+    np.testing.assert_array_equal(decode(ev, em.initial_state), em.ternary_of(v[-1]))
+
+
+def _requests(n, rate_eps, seed=0):
+    rng = np.random.default_rng(seed)
+    ev = np.zeros(n, BRIGHTNESS_DTYPE)
+    ev["t"] = np.sort(rng.integers(0, int(n * 1e6 / rate_eps), n))
+    ev["x"] = np.arange(n) % 300
+    return ev
+
+
+def test_latency_floor_delays_every_event_by_it():
+    ev = _requests(1000, 1e5)
+    out = Readout(ReadoutParams(latency_s=15e-6)).process(ev)
+    np.testing.assert_array_equal(out["t"], ev["t"] + 15)
+    np.testing.assert_array_equal(out["x"], ev["x"])
+
+
+def test_jitter_is_a_truncated_normal_and_does_not_depend_on_chunks():
+    ev = _requests(200_000, 1e6)
+    params = ReadoutParams(latency_s=20e-6, latency_jitter_s=4e-6)
+    whole = Readout(params, key=9).process(ev)
+    assert np.all(np.diff(whole["t"]) >= 0)
+    assert len(whole) == len(ev)
+    r = Readout(params, key=9)
+    parts = []
+    bounds = [0, 50_000, 50_001, 120_000, len(ev)]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        last = b == len(ev)
+        until = None if last else int(ev["t"][b])  # every later request comes at or after it
+        parts.append(r.process(ev[a:b], until_us=until))
+    chunked = np.concatenate(parts)
+    np.testing.assert_array_equal(np.sort(chunked, order=["t", "x"]), np.sort(whole, order=["t", "x"]))
+    # The delays of the events (matched through their unique request order): mean, sigma, bounds.
+    delay = _delays(ev, whole)
+    c = JITTER_TRUNCATION
+    trunc_sd = np.sqrt(1 - 2 * c * norm.pdf(c) / (2 * norm.cdf(c) - 1))
+    assert np.mean(delay) == pytest.approx(20.0 - 0.5, abs=0.1)  # floor() of the delayed time: -0.5 us on average
+    assert np.std(delay) == pytest.approx(4.0 * trunc_sd, rel=0.03)
+    assert delay.min() >= np.floor(20 - 3 * 4) - 1 and delay.max() <= 20 + 3 * 4
+
+
+def _delays(requests, delivered):
+    """Delivered minus requested time per event; events are told apart by a running id in x/y."""
+    ids = np.arange(len(requests))
+    req = requests.copy()
+    req["x"], req["y"] = (ids % 30000).astype(np.int16), (ids // 30000).astype(np.int16)
+    out = Readout(ReadoutParams(latency_s=20e-6, latency_jitter_s=4e-6), key=9).process(req)
+    got = out["y"].astype(np.int64) * 30000 + out["x"]
+    return out["t"] - req["t"][got]
