@@ -517,7 +517,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "preset but 'ideal')")
     v.add_argument("--out", required=True, help="output folder (replaced atomically)")
     v.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    v.add_argument("--quick", action="store_true", help="smaller, shorter runs (16x16 px, 3 s per point): wider intervals")
+    v.add_argument("--quick", action="store_true",
+                   help="smaller, shorter runs (16x16 px, 3 s per point): wider intervals")
     v.set_defaults(func=cmd_validate)
 
     s = sub.add_parser("study", help="run (or resume) a study: sweeps with repeats and counterfactuals, intervals, "

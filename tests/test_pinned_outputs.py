@@ -60,8 +60,8 @@ PINS = {
     "reconstruct.sor_rc": "bb63bd2e69e1c08eca1f16872604994330592002ef863103ab74dce4eb97fc6e",
     "reconstruct.direct": "55b8d418c891ccedf23674cd57c5e3f071e5409d1b3fa49f765ae3fc54485712",
     "reconstruct.high_pass": "19e50610e38aec048a5f75ae014603524b2989dad6cf9eb0929393e9ab4bcb29",
-    "driver_one_pose.h5": "b02062f4f66f66361299c26187a18a9ae19a58db5cf6663e90c4a4107ab32183",
-    "driver.h5": "810f332c94f6f2f9e4d16e13fe5b0dc1a80fba3185ed7a0fcd3945ac191f0ada",
+    "driver_one_pose.h5": "6a23295cd5f89e1c1ad8e25dbf60e164e04d0b293749a84239fd31a63957742c",
+    "driver.h5": "670d8635cf281ea785821c99abdc0ed54b81ee0132890c014beacae52894e53b",
 }
 
 

@@ -25,8 +25,15 @@ from gevsim import _portable as pm
 from gevsim._validate import real
 from gevsim.emulation import layout
 from gevsim.emulation.config import EmulationConfig, check_consistency
-from gevsim.emulation.emulators import (APS_READ_SEED, APS_SEED, EMULATORS, PHOTORECEPTOR_SEED, READOUT_SEED, SEED_SLOTS,
-                                        make_emulator)
+from gevsim.emulation.emulators import (
+    APS_READ_SEED,
+    APS_SEED,
+    EMULATORS,
+    PHOTORECEPTOR_SEED,
+    READOUT_SEED,
+    SEED_SLOTS,
+    make_emulator,
+)
 from gevsim.emulation.summary import RunSummary
 from gevsim.errors import ConfigError, suggest
 from gevsim.events.readout import Readout

@@ -23,7 +23,8 @@ from gevsim.errors import suggest
 from gevsim.events import BrightnessEmulator, CenterSurroundEmulator, GradientEmulator
 from gevsim.pixel.params import EventParams
 
-__all__ = ["APS_READ_SEED", "APS_SEED", "EMULATORS", "FRAME_EMULATORS", "PHOTORECEPTOR_SEED", "READOUT_SEED", "SEED_SLOTS",
+__all__ = ["APS_READ_SEED", "APS_SEED", "EMULATORS", "FRAME_EMULATORS", "PHOTORECEPTOR_SEED", "READOUT_SEED",
+           "SEED_SLOTS",
            "STREAMS", "Emulator", "check_emulator", "check_emulator_list", "make_emulator"]
 
 #: Slots of ``SeedSequence(seed).spawn(SEED_SLOTS)`` used outside the emulators.

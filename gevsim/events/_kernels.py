@@ -293,11 +293,11 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, offset, hysteresis,
                         step_x = 2 if rc else 1
                         m = W // 2 if rc else W - 1
                         if rc:
-                            changed = _gradient_row(v[t, y], empty, 2, m, theta[0, y], offset[0, y], tern[0, y], hysteresis,
-                                                    True, g_new, t_new, idx)
+                            changed = _gradient_row(v[t, y], empty, 2, m, theta[0, y], offset[0, y], tern[0, y],
+                                                    hysteresis, True, g_new, t_new, idx)
                         else:
-                            changed = _gradient_row(v[t, y], empty, 1, m, theta[0, y], offset[0, y], tern[0, y], hysteresis,
-                                                    False, g_new, t_new, idx)
+                            changed = _gradient_row(v[t, y], empty, 1, m, theta[0, y], offset[0, y], tern[0, y],
+                                                    hysteresis, False, g_new, t_new, idx)
                     else:
                         if y == H - 1 or (rc and y % 2 == 1):
                             continue
@@ -306,8 +306,8 @@ def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, offset, hysteresis,
                         if rc:
                             # Mean of G_Y(y) and G_Y(y + 1) = (v[y + 2] - v[y]) / 2 (G_Y of the last row is 0).
                             there = v[t, y + 2] if y + 2 < H else v[t, y + 1]
-                            changed = _gradient_row(v[t, y], there, 1, m, theta[1, y], offset[1, y], tern[1, y], hysteresis,
-                                                    True, g_new, t_new, idx)
+                            changed = _gradient_row(v[t, y], there, 1, m, theta[1, y], offset[1, y], tern[1, y],
+                                                    hysteresis, True, g_new, t_new, idx)
                         else:
                             changed = _gradient_row(v[t, y], v[t, y + 1], 1, m, theta[1, y], offset[1, y], tern[1, y],
                                                     hysteresis, False, g_new, t_new, idx)

@@ -81,8 +81,8 @@ class BrightnessEmulator:
         self.threshold_off_ln = off.ravel()
         dark_hz, light_hz_per_a = leak_rates(self.shape, params, rng=rng, temperature_k=temperature_k)
         self.leak_ln_per_s = dark_hz.ravel() * self.threshold_on_ln
-        self.leak_light = (light_hz_per_a.ravel() * self.threshold_on_ln if light_leak and params.leak_light_hz_per_a > 0
-                           else np.zeros(0))
+        lit = light_leak and params.leak_light_hz_per_a > 0
+        self.leak_light = light_hz_per_a.ravel() * self.threshold_on_ln if lit else np.zeros(0)
         n = self.threshold_on_ln.size
         phase = rng.random(n)  # drawn in either mode, so that the key below does not depend on it
         leaks = (self.leak_ln_per_s > 0.0) | (params.leak_light_hz_per_a > 0 and light_leak)

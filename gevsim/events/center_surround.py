@@ -22,8 +22,7 @@ from numpy.typing import ArrayLike
 from gevsim import _portable as pm
 from gevsim._validate import real
 from gevsim.events.brightness import BrightnessEmulator
-from gevsim.pixel.params import REFERENCE_TEMPERATURE_K
-from gevsim.pixel.params import EventParams
+from gevsim.pixel.params import REFERENCE_TEMPERATURE_K, EventParams
 
 COLUMN_BLOCK = 16  # columns per parallel work item of the y solves
 ROW_BLOCK = 8  # rows per parallel work item of the x solves

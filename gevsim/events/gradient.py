@@ -133,11 +133,11 @@ class GradientEmulator:
                 raise TypeError("threshold mismatch needs rng=numpy.random.Generator")
             theta2 = np.maximum(theta2 + mismatch_sigma_ln * rng.standard_normal(theta2.shape), 0.05 * theta2)
         self.theta = theta2  # (2, H, W): comparators of the X and Y axes
-        self.offset = np.zeros_like(theta2)
+        self.offset: np.ndarray = np.zeros_like(theta2)
         if real(offset_sigma_ln, "offset_sigma_ln", low=0.0):
             if not isinstance(rng, np.random.Generator):
                 raise TypeError("comparator offsets need rng=numpy.random.Generator")
-            self.offset = offset_sigma_ln * rng.standard_normal(theta2.shape)
+            self.offset = np.asarray(rng.standard_normal(size=theta2.shape), dtype=np.float64) * offset_sigma_ln
         self.rc = bool(rc)
         self.interpolate = bool(interpolate)
         self.hysteresis = real(hysteresis_ln, "hysteresis_ln", low=0.0, high=float(base.min()), high_open=True)

@@ -23,8 +23,15 @@ from gevsim.optics.photometry import (
     photopic_lef,
     spectrum_to_rgb,
 )
-from gevsim.optics.sensor import (QE_CURVES, SILICON_QE_BSI, SILICON_QE_FSI, Pixel, quantum_efficiency, silicon_qe,
-                                  silicon_qe_sd)
+from gevsim.optics.sensor import (
+    QE_CURVES,
+    SILICON_QE_BSI,
+    SILICON_QE_FSI,
+    Pixel,
+    quantum_efficiency,
+    silicon_qe,
+    silicon_qe_sd,
+)
 from gevsim.optics.spec import OPTICS_KEYS, from_spec
 
 __all__ = [

@@ -24,7 +24,8 @@ from gevsim._validate import increasing, real
 #: or a colour SpectralDistribution.
 QE = float | tuple[Sequence[float], Sequence[float]] | colour.SpectralDistribution | None
 
-__all__ = ["QE_CURVES", "SILICON_QE_BSI", "SILICON_QE_FSI", "silicon_qe", "silicon_qe_sd", "quantum_efficiency", "Pixel"]
+__all__ = ["QE_CURVES", "SILICON_QE_BSI", "SILICON_QE_FSI", "silicon_qe", "silicon_qe_sd", "quantum_efficiency",
+           "Pixel"]
 
 #: (wavelength_nm, QE) of a generic FSI CMOS pixel (assumed, typical values).
 SILICON_QE_FSI = (

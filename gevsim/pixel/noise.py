@@ -101,7 +101,8 @@ def coarsest_step_s(photoreceptor: Any, noise: NoiseParams, max_photocurrent_a: 
         return None
     fast = []
     if noise.shot_noise:
-        fast.append(float(photoreceptor.cutoff_at(max_photocurrent_a + dark_current_a(noise, photoreceptor.temperature_k))))
+        dark = dark_current_a(noise, photoreceptor.temperature_k)
+        fast.append(float(photoreceptor.cutoff_at(max_photocurrent_a + dark)))
     if noise.read_noise_v > 0:
         fast.append(noise.read_noise_bandwidth_hz)
     if not fast:

@@ -108,13 +108,16 @@ def gain_at(preset: SensorPreset, chip_lux: float, frequency_hz: float, *, depth
     cur = i0 * (1.0 + depth * pm.sin(2.0 * math.pi * frequency_hz * mid))
     pr.settle(np.full((1, 1, 1), i0), np.array([dt]))
     v = pr.process(cur.reshape(n, 1, 1), t).reshape(n).astype(np.float64)
-    tail = slice(n - n // 3, n)
+    tail = slice(n - n // 3, n)  # the last 4 whole periods: sin and cos are orthogonal there
     w = 2.0 * math.pi * frequency_hz * mid[tail]
-    basis = np.stack([pm.sin(w), pm.cos(w), np.ones_like(w)], axis=1)
-    coef, *_ = np.linalg.lstsq(basis, v[tail], rcond=None)
-    # ln(1 + d sin) has amplitude ~d (to d^2/8): the reference is the same fit of the input's ln.
-    ref, *_ = np.linalg.lstsq(basis, pm.log(cur[tail] / i0), rcond=None)
-    return float(math.hypot(coef[0], coef[1]) / math.hypot(ref[0], ref[1]))
+    sin, cos = pm.sin(w), pm.cos(w)
+
+    def amplitude(x: np.ndarray) -> float:
+        a, b = float(np.sum(x * sin)), float(np.sum(x * cos))
+        return math.sqrt(a * a + b * b)
+
+    # ln(1 + d sin) has amplitude ~d (to d^2/8): the reference is the same projection of the input's ln.
+    return amplitude(v[tail] - float(np.mean(v[tail]))) / amplitude(pm.log(cur[tail] / i0))
 
 
 def cutoff_hz(preset: SensorPreset, chip_lux: float, *, tolerance: float = 0.005) -> float:

@@ -29,7 +29,8 @@ def validate(preset: SensorPreset, *, settings: Settings | None = None,
         rows += check(preset, s, data)
         if progress:
             progress(k + 1, total)
-    curves: dict[str, list] = {"chip_lux": list(CURVE_LUX), "on_hz": [], "off_hz": [], "cutoff_hz": [], "latency_s": []}
+    curves: dict[str, list] = {"chip_lux": list(CURVE_LUX), "on_hz": [], "off_hz": [], "cutoff_hz": [],
+                               "latency_s": []}
     for k, lux in enumerate(CURVE_LUX):
         on, off = background_activity(preset, lux, shape=s.shape, duration_s=s.curve_duration_s, seed=3)
         curves["on_hz"].append([on.value, on.low, on.high])
@@ -46,11 +47,13 @@ def markdown(preset: SensorPreset, rows: list[Row], settings: Settings) -> str:
     passed = sum(r.verdict == "pass" for r in rows)
     failed = sum(r.verdict == "fail" for r in rows)
     lines = [f"# gevsim validate: {preset.name}", "",
-             f"{passed} passed, {failed} failed, {len(rows) - passed - failed} not applicable. Preset: `{preset.source}`.",
+             f"{passed} passed, {failed} failed, {len(rows) - passed - failed} not applicable. "
+             f"Preset: `{preset.source}`.",
              "", "| check | source | published | model [95 % interval] | verdict | how |", "|---|---|---|---|---|---|"]
     lines += [f"| {r.check} | {r.source} | {r.published} | {r.model} | **{r.verdict}** | {r.note} |" for r in rows]
     lines += ["", f"Runs: {settings.shape[1]}x{settings.shape[0]} uniform pixels, D65 light at the stated chip "
-              f"(focal-plane) illuminance, {settings.duration_s:g} s per published point ({settings.curve_duration_s:g} s "
+              f"(focal-plane) illuminance, {settings.duration_s:g} s per published point "
+              f"({settings.curve_duration_s:g} s "
               "per curve point), a sensor that has been running (settled photoreceptor, stationary noise, random leak "
               "phases). Intervals: 95 %, from the per-pixel spread (at least Poisson); no event: [0, 3/(n T)].",
               "Sources: `gevsim/validation/published.toml`.", "",

@@ -9,6 +9,7 @@ from gevsim.emulation.emulators import (
     EMULATORS,
     FRAME_EMULATORS,
     PHOTORECEPTOR_SEED,
+    READOUT_SEED,
     SEED_SLOTS,
     STREAMS,
     check_emulator,
@@ -17,7 +18,7 @@ from gevsim.evaluation.methods import METHODS, check_method
 
 
 def test_seed_slots_are_distinct_and_fixed():
-    slots = [e.seed_slot for e in EMULATORS.values()] + [PHOTORECEPTOR_SEED, APS_SEED, APS_READ_SEED]
+    slots = [e.seed_slot for e in EMULATORS.values()] + [PHOTORECEPTOR_SEED, APS_SEED, APS_READ_SEED, READOUT_SEED]
     assert sorted(slots) == list(range(SEED_SLOTS))
     # The slots earlier runs were seeded with: changing one changes every run's events.
     assert {n: e.seed_slot for n, e in EMULATORS.items()} == {"dvs": 1, "gradient": 2, "gradient_rc": 3, "csdvs": 4}

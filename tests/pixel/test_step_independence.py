@@ -73,7 +73,7 @@ def test_the_output_noise_is_the_two_pole_cascade():
     """Stationary variance of shot noise through the photoreceptor pole (alpha) and the output pole
     (beta): pi q f_c / I x beta / (alpha + beta); read noise: sigma^2 x beta / (alpha_r + beta)."""
     base = load_preset("davis346")
-    preset = with_overrides(base, {"read_noise_v": 0.0})
+    preset = with_overrides(base, {"read_noise_v": 0.0, "feedback_shot_noise": False, "dc_offset_v": 0.0})
     current = np.full((40, 50), 2e-12)
     pr = Photoreceptor(current.shape, params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(1))
     t = 2e-5 * np.arange(1, 4001)
@@ -111,7 +111,7 @@ def test_without_a_photoreceptor_filter_the_output_pole_still_filters():
     alone filters a step: y(t) = u2 - (u2 - u1) exp(-2 pi f_out t) (found by review: the pole was skipped)."""
     preset = with_overrides(load_preset("davis346"), {"cutoff_hz": math.inf, "max_cutoff_hz": math.inf,
                                                       "shot_noise": False, "read_noise_v": 0.0, "prnu": 0.0,
-                                                      "dark_current_spread": 0.0})
+                                                      "dark_current_spread": 0.0, "dc_offset_v": 0.0})
     pr = Photoreceptor((1, 1), params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(0))
     dt = 2e-6
     t = dt * np.arange(1, 201)

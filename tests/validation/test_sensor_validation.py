@@ -6,8 +6,17 @@ import numpy as np
 import pytest
 
 from gevsim.pixel import load_preset
-from gevsim.validation.checks import (Settings, agree, check_background, check_bandwidth, check_mismatch,
-                                      check_readout, published, scene_to_chip_lux, within_2x)
+from gevsim.validation.checks import (
+    Settings,
+    agree,
+    check_background,
+    check_bandwidth,
+    check_mismatch,
+    check_readout,
+    published,
+    scene_to_chip_lux,
+    within_2x,
+)
 from gevsim.validation.measure import Rate, rate_interval
 
 
