@@ -91,13 +91,14 @@ def stationary_pair(var, alpha, beta, z1, z2):
 
 
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def smooth_row(cur, gain, dark, v1, v2, rd, out, zs1, zs2, zr1, zr2, d, fc_per_a, fc_max, filt, shot_q,
+def smooth_row(cur, gain, dark, v1, v2, rd, out, zs1, zs2, zr1, zr2, d, fc_per_a, fc_max, filt, shot_q, amp,
                beta, b2, eb2, has_read, r_coef):
     """One step of the photoreceptor (pole 1), the read-noise pole and the output pole for a run
     of pixels, every noise through two poles. v1 photoreceptor state, v2 output, rd read-noise
     state (ln units), updated in place; out receives the output (float32). zs*, zr* are the
-    step's standard normals for shot and read noise. r_coef = (a_r, c_det, s1, r, s2, c) of the
-    read-noise pole for this step (the same for every pixel)."""
+    step's standard normals for shot and read noise; the photoreceptor pole's noise has variance
+    shot_q f_c / I (shot noise) + amp / f_c (the amplifier's noise the loop leaves).
+    r_coef = (a_r, c_det, s1, r, s2, c) of the read-noise pole for this step (the same for every pixel)."""
     a_r, c_det_r, rs1, rr, rs2, rc = r_coef
     for p in range(cur.shape[0]):
         itot = np.float64(cur[p]) * gain[p] + dark[p]
@@ -111,8 +112,8 @@ def smooth_row(cur, gain, dark, v1, v2, rd, out, zs1, zs2, zr1, zr2, d, fc_per_a
         # held input, exact; without a photoreceptor filter (filt = 0) x jumps to u: no coupling
         y = u + b2 * (v2[p] - u) + filt * beta / (beta - alpha) * (a - b2) * e1
         x = u + a * e1
-        if shot_q > 0.0:
-            var = shot_q * fc / itot
+        if shot_q > 0.0 or amp > 0.0:
+            var = shot_q * fc / itot + amp / fc
             s1, r, s2, c = pair_coefficients(var, alpha, beta, ea, eb2)
             z1 = np.float64(zs1[p])
             xn = s1 * z1

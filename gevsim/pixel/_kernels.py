@@ -185,23 +185,23 @@ def _filter_input(cur, gain, dark, v1, fc_per_a, fc_max, d, filt):
 
 
 @njit(inline="always")
-def _shot_noise(shot_q, fc, itot, a, z):
+def _shot_noise(shot_q, amp, fc, itot, a, z):
     """The shot-noise term added to the first pole's state over a step (exact for the
     Ornstein-Uhlenbeck transition), driven by the deviate z."""
-    return np.float64(np.sqrt(np.float32(shot_q * fc / itot * (1.0 - a * a))) * z)
+    return np.float64(np.sqrt(np.float32((shot_q * fc / itot + amp / fc) * (1.0 - a * a))) * z)
 
 
 @njit(inline="never", error_model="numpy", fastmath={"nnan", "ninf"}, cache=True)
-def _photoreceptor_row(cur, gain, dark, v1, out, z, d, fc_per_a, fc_max, filt, shot_q):
+def _photoreceptor_row(cur, gain, dark, v1, out, z, d, fc_per_a, fc_max, filt, shot_q, amp):
     """One step of the photoreceptor without an output pole, for a contiguous run of pixels:
     branch-free so that LLVM vectorises it. z holds the pixels' shot-noise deviates (read only
     when shot_q > 0). One loop per case, so that none computes what it discards. Filter states
     stay in double precision. (With an output pole: :func:`gevsim.pixel._cascade.smooth_row`.)"""
     n = cur.shape[0]
-    if shot_q > 0.0:
+    if shot_q > 0.0 or amp > 0.0:
         for p in range(n):
             itot, u, fc, a, e1 = _filter_input(cur[p], gain[p], dark[p], v1[p], fc_per_a, fc_max, d, filt)
-            x = u + a * e1 + _shot_noise(shot_q, fc, itot, a, z[p])
+            x = u + a * e1 + _shot_noise(shot_q, amp, fc, itot, a, z[p])
             v1[p] = x
             out[p] = np.float32(x)
     else:
@@ -226,7 +226,7 @@ def _ou_row(state, out, z, alpha, scale):
 
 @njit(parallel=True, nogil=True, cache=True)
 def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0,
-                  fc_ref, i_ref, fc_max, f2, shot_q, n_read, out):
+                  fc_ref, i_ref, fc_max, f2, shot_q, amp, n_read, out):
     """Advance the photoreceptor over T steps of held photocurrent.
 
     current (T, P) photocurrent (A) held over each step of duration dt (T,) s,
@@ -235,7 +235,9 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
     fn (M, P) states of Ornstein-Uhlenbeck noise (band-limited read noise, the first
     ``n_read`` (0 or 1) of them, then 1/f poles) with corner frequencies fn_hz (M,) and
     variances fn_var (M,); all updated in place. out (T, P) receives the output
-    in ln units. fc_ref <= 0 means infinite bandwidth (no filter); shot_q = elementary
+    in ln units. amp > 0: the photoreceptor amplifier's noise that the feedback loop leaves,
+    variance amp / f_c on the photoreceptor pole (needs a finite bandwidth).
+    fc_ref <= 0 means infinite bandwidth (no filter); shot_q = elementary
     charge * pi to enable shot noise, else 0. f2 > 0: the output pole (source follower,
     change amplifier input), through which the shot and read noise pass after their own
     poles (:mod:`gevsim.pixel._cascade`: smooth, exact for any step); f2 <= 0: none, and the
@@ -272,7 +274,7 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
             a_r, c_det, s1, r, s2, c = read_coefficients(fn_var[0], _TWO_PI * fn_hz[0], beta, dt[t])
             read[t, 0], read[t, 1], read[t, 2], read[t, 3], read[t, 4], read[t, 5] = a_r, c_det, s1, r, s2, c
     nblocks = (P + BLOCK - 1) // BLOCK
-    shot = shot_q > 0
+    shot = shot_q > 0 or amp > 0
     first_ou = n_read if smooth_read else 0
     for b in prange(nblocks):
         lo = b * BLOCK
@@ -298,10 +300,10 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
                 r_coef = (read[t, 0], read[t, 1], read[t, 2], read[t, 3], read[t, 4], read[t, 5])
                 smooth_row(current[t, lo:hi], gain[lo:hi], dark[lo:hi], v1[lo:hi], v2[lo:hi],
                            fn[0, lo:hi] if smooth_read else v2[lo:hi], out[t, lo:hi], z, z2, zr, zr2, d, fc_per_a,
-                           fcm, filt, shot_q, beta, b2, steps[t, 1], smooth_read, r_coef)
+                           fcm, filt, shot_q, amp, beta, b2, steps[t, 1], smooth_read, r_coef)
             else:
                 _photoreceptor_row(current[t, lo:hi], gain[lo:hi], dark[lo:hi], v1[lo:hi], out[t, lo:hi], z, d,
-                                   fc_per_a, fcm, filt, shot_q)
+                                   fc_per_a, fcm, filt, shot_q, amp)
             for m in range(first_ou, M):
                 normals_row(keys[t, m + 1] + np.uint64(lo) * GOLDEN, z, sp, idx)
                 _ou_row(fn[m, lo:hi], out[t, lo:hi], z, fn_alpha[t, m], fn_scale[t, m])

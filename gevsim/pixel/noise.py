@@ -84,8 +84,11 @@ def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *, rng: np.random.Ge
 
 #: The coarsest step, as a fraction of the fastest noise path's crossing time 1 / (2 pi sqrt(f_a f_out)),
 #: at which noise-event rates stay within about 10 % of their limit (measured: benchmarks/step_convergence.py;
-#: counts converge to first order in the step, from below).
-STEP_FRACTION = 0.5
+#: counts converge to first order in the step, from below). 0.5 sufficed for the issue-22 presets; with issue 23's
+#: photoreceptor offsets (gradient comparators sitting near their thresholds) and 10 kHz photoreceptors, davis346 at
+#: 1000 chip lux gave gradient rates 1338 / 1464 / 1526 ev/px/s at 0.5, 0.25 and 0.125 (14 % spread): 0.35 keeps the
+#: spread within 10 % (tests/pixel/test_step_independence.py).
+STEP_FRACTION = 0.35
 
 
 def coarsest_step_s(photoreceptor: Any, noise: NoiseParams, max_photocurrent_a: float) -> float | None:
@@ -100,7 +103,7 @@ def coarsest_step_s(photoreceptor: Any, noise: NoiseParams, max_photocurrent_a: 
     if f_out is None:
         return None
     fast = []
-    if noise.shot_noise:
+    if noise.shot_noise or noise.amplifier_noise_ln2_hz > 0:
         dark = dark_current_a(noise, photoreceptor.temperature_k)
         fast.append(float(photoreceptor.cutoff_at(max_photocurrent_a + dark)))
     if noise.read_noise_v > 0:

@@ -110,6 +110,12 @@ class NoiseParams(FromTable):
         within 2x of photon shot noise).
     dark_current_doubling_k : the dark current doubles every this many kelvin above
         :data:`REFERENCE_TEMPERATURE_K` (inf: no temperature dependence).
+    amplifier_noise_ln2_hz : the photoreceptor amplifier's noise that its feedback loop does not
+        suppress (ln^2 Hz). The amplifier's current noise on its output node is pulled back by the
+        loop at the closed-loop cutoff f_c, an Ornstein-Uhlenbeck process of fixed diffusion: its
+        variance is this / f_c, so it rises as the light (and f_c) falls. This is the mechanism that
+        makes background activity rise steeply in the dark (Graca & Delbruck 2021's "paradox": shot
+        noise alone has a light-independent variance where f_c ~ I).
     dc_offset_v : sigma (volts) of the photoreceptors' DC output offsets (fixed pattern, from the
         feedback transistors' threshold mismatch). A DVS is AC-coupled and does not see it; gradient
         comparators and the centre-surround DVS compare neighbours' levels and do.
@@ -129,6 +135,7 @@ class NoiseParams(FromTable):
     feedback_shot_noise: bool = False
     dark_current_doubling_k: float = math.inf
     dc_offset_v: float = 0.0
+    amplifier_noise_ln2_hz: float = 0.0
 
     def __post_init__(self):
         n = type(self).__name__
@@ -137,6 +144,7 @@ class NoiseParams(FromTable):
                              f"{n}.feedback_shot_noise must be true or false, got {self.feedback_shot_noise!r}")
         real(self.dark_current_doubling_k, "dark_current_doubling_k", low=0, low_open=True, allow_inf=True)
         real(self.dc_offset_v, "dc_offset_v", low=0)
+        real(self.amplifier_noise_ln2_hz, "amplifier_noise_ln2_hz", low=0)
         if not isinstance(self.shot_noise, bool):
             raise FieldError("shot_noise", f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
         for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "flicker_noise_v"):

@@ -53,6 +53,9 @@ class Photoreceptor:
         bandwidth = math.isfinite(params.cutoff_hz) or math.isfinite(params.max_cutoff_hz)
         if noise.shot_noise and not bandwidth:
             raise ValueError("shot noise needs a finite photoreceptor bandwidth (its variance grows with it)")
+        if noise.amplifier_noise_ln2_hz > 0 and not bandwidth:
+            raise ValueError("amplifier noise needs a finite photoreceptor bandwidth (its variance is "
+                             "amplifier_noise_ln2_hz / f_c)")
         self.shape = tuple(int(s) for s in shape)
         self.params, self.noise = params, noise
         gain, dark = fixed_pattern(self.shape, noise, rng=rng, temperature_k=params.temperature_k)
@@ -119,7 +122,7 @@ class Photoreceptor:
         def period(v1: np.ndarray, v2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             v1, v2 = v1.copy(), v2.copy()
             _kernels.photoreceptor(flat, dt, self.gain, self.dark_a, v1, v2, np.zeros((0, n)), np.zeros(0),
-                                   np.zeros(0), np.uint64(self.key), 0, *self._bandwidth(), 0.0, 0,
+                                   np.zeros(0), np.uint64(self.key), 0, *self._bandwidth(), 0.0, 0.0, 0,
                                    np.empty(flat.shape, np.float32))
             return v1, v2
 
@@ -145,11 +148,11 @@ class Photoreceptor:
         p = self.params
         f_out = p.second_pole_hz
         beta = 2.0 * math.pi * f_out if f_out is not None else math.inf
-        if self.noise.shot_noise:
+        if self.noise.shot_noise or self.noise.amplifier_noise_ln2_hz > 0:
             fc = p.cutoff_at(itot)  # as the kernel: proportional to the total current, capped
             if f_out is not None:  # as the kernel: a pole within POLE_GAP of the output pole is moved to it
                 fc = separated_hz(fc, f_out)
-            var = self.shot_q * fc / itot
+            var = self.shot_q * fc / itot + self.noise.amplifier_noise_ln2_hz / fc
             alpha = 2.0 * math.pi * fc
             xn = np.sqrt(var) * self.start_z[0]
             v1 += xn
@@ -194,7 +197,7 @@ class Photoreceptor:
         out = np.empty(flat.shape, np.float32)
         _kernels.photoreceptor(
             flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint64(self.key), self.step,
-            *self._bandwidth(), self.shot_q, self.n_read, out,
+            *self._bandwidth(), self.shot_q, self.noise.amplifier_noise_ln2_hz, self.n_read, out,
         )
         if self.offset_ln is not None:  # the DC offsets pass no filter: they are constant
             out += self.offset_ln

@@ -69,16 +69,16 @@ def test_steps_are_split_at_the_lamps_jumps():
 
 
 def test_a_step_too_coarse_for_the_noise_is_sub_stepped():
-    """davis346: shot noise through the 3 kHz photoreceptor (bright light) and the 2 kHz output pole crosses
-    levels on 1 / (2 pi sqrt(3 kHz 2 kHz)) = 65 us;
-    a step must resolve half of it (noise rates within ~10 %: benchmarks/step_convergence.py), else
+    """davis346 at 1 pA (its photoreceptor at 664 Hz): read noise through 2 kHz and 2 kHz poles crosses levels
+    on 1 / (2 pi 2 kHz) = 80 us;
+    a step must resolve STEP_FRACTION (0.35) of it (noise rates within ~10 %), else
     each step is split into equal sub-steps."""
     from gevsim.emulation.driver import refine, substeps
-    from gevsim.pixel.noise import coarsest_step_s
+    from gevsim.pixel.noise import STEP_FRACTION, coarsest_step_s
 
     preset = load_preset("davis346")
     limit = coarsest_step_s(preset.photoreceptor, preset.noise, 1e-12)
-    assert limit == pytest.approx(0.5 / (2 * np.pi * np.sqrt(3000.0 * 2000.0)))
+    assert limit == pytest.approx(STEP_FRACTION / (2 * np.pi * 2000.0))
     manifest = load(DATA / "card.toml")
     setup = Setup(manifest=manifest, preset=preset, basis_times_s=np.array([0.0]),
                   current_basis=np.full((1, 1, manifest.render.height, manifest.render.width), 1e-12),

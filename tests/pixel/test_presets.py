@@ -27,8 +27,8 @@ def test_bandwidth_reference_follows_pixel_area():
     a = lux_to_photocurrent_a(1000.0, pixel_pitch_m=40e-6, fill_factor=0.081)
     b = lux_to_photocurrent_a(1000.0, pixel_pitch_m=20e-6, fill_factor=0.081)
     assert a == pytest.approx(4 * b)
-    one_lux = lux_to_photocurrent_a(1.0, pixel_pitch_m=40e-6, fill_factor=0.094)  # dvs128 states it at 1 chip lux
-    assert load_preset("dvs128").photoreceptor.cutoff_ref_photocurrent_a == pytest.approx(one_lux)
+    ref = lux_to_photocurrent_a(57.4, pixel_pitch_m=40e-6, fill_factor=0.094)  # L08's 1 klux scene = 57.4 chip lux
+    assert load_preset("dvs128").photoreceptor.cutoff_ref_photocurrent_a == pytest.approx(ref)
 
 
 def test_ideal_preset_is_noise_free():

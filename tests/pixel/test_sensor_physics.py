@@ -47,6 +47,19 @@ def test_feedback_transistor_doubles_the_shot_noise_variance():
     assert out[True] == pytest.approx(2.0 * single, rel=0.05)
 
 
+def test_amplifier_noise_variance_is_inverse_to_the_cutoff():
+    """The loop leaves the amplifier's noise an Ornstein-Uhlenbeck process on the photoreceptor pole:
+    variance amplifier_noise_ln2_hz / f_c, so 10x less light (f_c ~ I) gives 10x the variance."""
+    params = PhotoreceptorParams(cutoff_hz=100.0, cutoff_ref_photocurrent_a=1e-13, max_cutoff_hz=1e4)
+    noise = NoiseParams(shot_noise=False, dark_current_a=0.0, amplifier_noise_ln2_hz=0.05)
+    for i, fc in ((1e-13, 100.0), (1e-14, 10.0)):
+        pr = Photoreceptor((32, 32), params=params, noise=noise, rng=np.random.default_rng(7))
+        dt = 0.05 / fc  # samples 5 time constants apart are independent
+        t = dt * np.arange(1, 4001)
+        v = pr.process(np.full((len(t), 32, 32), i), t)
+        assert float(np.var(v - math.log(i))) == pytest.approx(0.05 / fc, rel=0.05), fc
+
+
 def test_dc_offsets_shift_the_output_but_not_the_dvs():
     """Offsets of sigma dc_offset_v / (n U_T) per pixel; a DVS is AC-coupled: its events are unchanged."""
     base = NoiseParams(shot_noise=True, read_noise_v=3e-4, dark_current_a=4e-15)
