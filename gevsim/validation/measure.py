@@ -116,8 +116,10 @@ def gain_at(preset: SensorPreset, chip_lux: float, frequency_hz: float, *, depth
         a, b = float(np.sum(x * sin)), float(np.sum(x * cos))
         return math.sqrt(a * a + b * b)
 
-    # ln(1 + d sin) has amplitude ~d (to d^2/8): the reference is the same projection of the input's ln.
-    return amplitude(v[tail] - float(np.mean(v[tail]))) / amplitude(pm.log(cur[tail] / i0))
+    # The reference is the same projection of the input's ln (with the dark current, which dilutes the
+    # modulation of a dim pixel's total current): the gain is the filters' alone.
+    dark = float(pr.dark_a[0])
+    return amplitude(v[tail] - float(np.mean(v[tail]))) / amplitude(pm.log((cur[tail] + dark) / (i0 + dark)))
 
 
 def cutoff_hz(preset: SensorPreset, chip_lux: float, *, tolerance: float = 0.005) -> float:

@@ -83,3 +83,15 @@ def test_cli_writes_the_report(tmp_path, capsys):
     assert cli.main(["validate", "--sensor", "nosuch", "--out", str(out)]) != 0
     assert "nosuch" in capsys.readouterr().err
     assert (out / "report.md").is_file()  # the earlier report is kept
+
+
+def test_measured_cutoff_is_the_photoreceptor_pole():
+    """The bench's -3 dB (a 1 % sinusoid) equals cutoff_at(I + I_dark) within 3 % (the audit's test V3b), down
+    to light below the dark current, when no output pole adds its own."""
+    from gevsim.pixel.presets import with_overrides
+    from gevsim.validation.measure import cutoff_hz, photocurrent_a
+
+    p = with_overrides(load_preset("davis346"), {"second_pole_hz": None})
+    for lux in (0.03, 1.0, 10.0):
+        expected = float(p.photoreceptor.cutoff_at(photocurrent_a(p, lux) + p.noise.dark_current_a))
+        assert cutoff_hz(p, lux, tolerance=0.002) == pytest.approx(expected, rel=0.03), lux
