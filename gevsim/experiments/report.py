@@ -158,15 +158,28 @@ def map_findings(rows: list[dict]) -> list[str]:
         area_b = np.median([r["border_area_share"] for r in sel])
         area_d = np.median([r["dim_area_share"] for r in sel])
         out.append(f"{EMULATORS[e].label}: in the {len(sel)} runs where flicker adds events beyond their interval, "
-                   f"{100 * border:.0f} % of them lie at borders between regions lit by different lamps "
-                   f"({100 * area_b:.0f} % of the pixels: {_concentration(border, area_b)}) and {100 * dim:.0f} % "
+                   f"{_share(border)} lie at borders between regions lit by different lamps "
+                   f"({100 * area_b:.0f} % of the pixels: {_concentration(border, area_b)}) and {_share(dim)} "
                    f"in the dimmest quarter of the pixels ({_concentration(dim, area_d)}; medians over runs).")
     return out
+
+
+def _share(share: float) -> str:
+    """A region's share of the flicker-induced events, in words where it is not positive: a difference of
+    counts (with flicker minus without) is negative where flicker removes events there (the noise and flicker
+    events interact: a pixel busy with flicker, or held in reset, fires fewer noise events)."""
+    if share > 0.005:
+        return f"{100 * share:.0f} % of them"
+    if share >= -0.005:
+        return "none of them"
+    return "none of them (flicker removes events there: fewer than without it)"
 
 
 def _concentration(share: float, area: float) -> str:
     if area <= 0:
         return "no such pixels"
+    if share <= 0:
+        return "none there"
     ratio = share / area
     if ratio >= 1.5:
         return f"{ratio:.2g}x their share of the image: concentrated there"

@@ -107,3 +107,16 @@ def test_region_shares_split_a_map_by_lamp_border_and_darkness():
     shares = region_shares(rate, regions)
     assert shares == {"border": pytest.approx(0.75), "dim": pytest.approx(0.25)}
     assert region_shares(-rate, regions) == {"border": None, "dim": None}
+
+
+def test_map_findings_never_print_a_negative_share():
+    """A region's share of flicker-induced events is a difference of counts: where flicker removes events there
+    (noise and flicker interact) the report says so in words, not as a negative percentage."""
+    from gevsim.experiments.report import map_findings
+
+    rows = [{"dvs_flicker_per_pixel_s": 5.0, "dvs_flicker_per_pixel_s_low": 4.0, "dvs_flicker_per_pixel_s_high": 6.0,
+             "dvs_flicker_border_share": 0.11, "dvs_flicker_dim_share": -0.004 - 0.01 * k,
+             "border_area_share": 0.09, "dim_area_share": 0.25} for k in range(3)]
+    text = " ".join(map_findings(rows))
+    assert "11 % of them" in text and "flicker removes events there" in text
+    assert "-" not in text.replace("by-", "")
