@@ -60,8 +60,8 @@ PINS = {
     "reconstruct.sor_rc": "bb63bd2e69e1c08eca1f16872604994330592002ef863103ab74dce4eb97fc6e",
     "reconstruct.direct": "55b8d418c891ccedf23674cd57c5e3f071e5409d1b3fa49f765ae3fc54485712",
     "reconstruct.high_pass": "19e50610e38aec048a5f75ae014603524b2989dad6cf9eb0929393e9ab4bcb29",
-    "driver_one_pose.h5": "7d623efee99814122a597e5cd1f86ac476ea2e051044e049663ad6ce77b14be9",
-    "driver.h5": "bb1635605979774708b78f9b8b4224002561ca70ee5ac57fb44b6733497ae495",
+    "driver_one_pose.h5": "d34e8d7cb8819ce5b0792e76b0375d6c74c85b0e6b8351b683dce4132f7f495d",
+    "driver.h5": "9688502176f01fb10fa831f24706ac2f041e2e9a13a0885f965de8f88b69239e",
 }
 
 

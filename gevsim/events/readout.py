@@ -28,7 +28,7 @@ from gevsim.pixel.params import ReadoutParams
 #: The latency spread is truncated at this many sigma.
 JITTER_TRUNCATION = 3.0
 
-__all__ = ["Readout", "ReadoutParams"]
+__all__ = ["Readout", "ReadoutParams", "chip_share"]
 
 
 @njit(cache=True)
@@ -55,6 +55,18 @@ def _serve(t_us, service_us, max_delay_us, free_us, keep, t_out):
             total += wait
             longest = max(longest, wait)
     return free_us, delayed, dropped, total, longest
+
+
+def chip_share(params: ReadoutParams, *, emulated_px: int, chip_px: int) -> ReadoutParams:
+    """The bus an emulation of ``emulated_px`` pixels gets of a chip of ``chip_px``: the same events per
+    pixel per second, ``max_rate_eps x emulated_px / chip_px``. An emulation at a coarser resolution than
+    the chip views the same field (each emulated pixel stands for chip_px / emulated_px chip pixels firing
+    alike), so a 96x72 run of a DAVIS346 (12 Meps over 346x260: 133 ev/px/s) may deliver 0.92 Meps, not 12."""
+    import dataclasses
+
+    if emulated_px < 1 or chip_px < 1:
+        raise ValueError(f"pixel counts must be >= 1, got {emulated_px} and {chip_px}")
+    return dataclasses.replace(params, max_rate_eps=params.max_rate_eps * emulated_px / chip_px)
 
 
 @njit(cache=True)

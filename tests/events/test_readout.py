@@ -93,3 +93,17 @@ def test_the_driver_reads_every_stream_through_the_sensors_bus(tmp_path):
     assert s["requested"] == s["delivered"] + s["dropped"] + s["pending_at_end"]
     per_ms = np.bincount(ev["t"] // 1000)
     assert per_ms.max() <= 2e5 * 1e-3 + 1
+
+
+def test_an_emulation_gets_the_chips_bus_per_pixel():
+    """96x72 pixels viewing a davis346's field: 12 Meps x 6912 / 89960 = 0.922 Meps (133 ev/px/s, as the chip)."""
+    from gevsim.events.readout import chip_share
+    from gevsim.pixel import load_preset
+
+    p = load_preset("davis346")
+    share = chip_share(p.readout, emulated_px=96 * 72, chip_px=p.width * p.height)
+    assert share.max_rate_eps == pytest.approx(12e6 * 6912 / 89960)
+    assert share.max_rate_eps / 6912 == pytest.approx(p.readout.max_rate_eps / (346 * 260))
+    assert share.latency_s == p.readout.latency_s
+    with pytest.raises(ValueError):
+        chip_share(p.readout, emulated_px=0, chip_px=10)
