@@ -90,6 +90,8 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
         run, nf, ideal, floor = (per_repeat(v) for v in ("run", "no_flicker", "ideal", "render_floor"))
         row[f"{e}_events_per_s"] = float(run.mean() / duration)
         row[f"{e}_event_probability"] = float(np.mean([r["event_probability"][e] for r in records]))
+        row[f"{e}_bus_limited"] = any(stream in r.get("bus_limited", {}).get(v, []) for r in records
+                                      for v in ("run", "no_flicker"))
         flicker[e] = (run - nf) * scale
         _put(row, f"{e}_flicker_per_pixel_s", mean_interval(flicker[e], confidence=CONFIDENCE))
         _put(row, f"{e}_noise_per_pixel_s", mean_interval((nf - ideal) * scale, confidence=CONFIDENCE))
@@ -110,6 +112,10 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
         _put(row, "flicker_rejection_ratio", ratio)
         row["flicker_rejection_ratio_method"] = ratio.method
         row["flicker_rejection_ratio_at_least"] = ratio_lower_bound(row, len(records), pixels * duration)
+        if row["dvs_bus_limited"] or row["gradient_bus_limited"]:  # the counts measure the bus: no ratio to plot
+            for k in ("", "_low", "_high"):
+                row[f"flicker_rejection_ratio{k}"] = float("nan")
+            row["flicker_rejection_ratio_at_least"] = None
     regions = map_regions(maps["dominant_group"], maps["chip_lux"])
     for e in emulators:
         row.update({f"{e}_flicker_{name}_share": share for name, share

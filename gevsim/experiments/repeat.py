@@ -137,12 +137,14 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     group = flicker_group(study, params.get("scene", study.base["scene"]))
     frequency = 1.0 / periods[group] if group in periods else None
     counts: dict[str, dict[str, int]] = {}
+    saturated: dict[str, list[str]] = {}
     folded: dict[str, dict[str, dict]] = {}
     for name, kw in VARIANTS.items():
         use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" \
             else setup
         info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
         counts[name] = dict(info.counts)
+        saturated[name] = _bus_limited(folder / f"{name}.h5")
         if name == "run":
             stats, summary = summarize(folder / "run.h5"), info
         if name in FOLDED:
@@ -150,7 +152,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
                                      summary.duration_s) for e in study.base["emulators"]}
     record: dict[str, Any] = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
               "width": w, "height": h, "duration_s": summary.duration_s, "steps": summary.steps,
-              "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts,
+              "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts, "bus_limited": saturated,
               "event_probability": {e: stats[EMULATORS[e].stream].event_probability
                                     for e in study.base["emulators"]},
               "render": _render_quality(setup.render_quality), "metrics": {}}
@@ -185,6 +187,21 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     if not keep_files:
         shutil.rmtree(folder, ignore_errors=True)
     return record
+
+
+#: A stream is bus-limited when its readout lost events (dropped, or still queued at the end) or made them
+#: wait longer than this on average: then its counts say what the bus delivered, not what the pixels made.
+BUS_LIMITED_MEAN_DELAY_US = 100.0
+
+
+def _bus_limited(path: Path) -> list[str]:
+    """The streams of an emulation file whose readout limited them (:data:`BUS_LIMITED_MEAN_DELAY_US`)."""
+    from gevsim.io import EventReader
+
+    with EventReader(path) as r:
+        readout = json.loads(str(r.attrs.get("readout_json", "{}")))
+    return sorted(stream for stream, c in readout.items()
+                  if c["dropped"] or c["pending_at_end"] or c["mean_delay_us"] > BUS_LIMITED_MEAN_DELAY_US)
 
 
 def _render_quality(quality: dict) -> dict:

@@ -44,6 +44,13 @@ def write_table(folder: Path, rows: list[dict]) -> None:
     (folder / "results.json").write_text(json.dumps(rows, indent=1, default=float))
 
 
+def flicker_cell(row: dict, emulator: str) -> str:
+    """An emulator's flicker-induced rate, marked where the readout limited the stream (the difference of two
+    runs then measures the bus, not the pixels)."""
+    text = fmt(row, f"{emulator}_flicker_per_pixel_s")
+    return f"bus-limited: {text}" if row.get(f"{emulator}_bus_limited") else text
+
+
 def fmt(row: dict, key: str, digits: int = 3) -> str:
     """A row's value with its interval (or the bare value where it has none)."""
     iv = interval_of(row, key)
@@ -60,6 +67,10 @@ def ratio_text(row: dict) -> str:
     iv = interval_of(row, "flicker_rejection_ratio")
     if iv is None:
         return "-"
+    limited = [EMULATORS[e].label for e in ("dvs", "gradient") if row.get(f"{e}_bus_limited")]
+    if limited:
+        return (f"not measurable: the readout limits {' and '.join(limited)} (its bus delivers at most what it "
+                "carries: flicker cannot add events to a full bus)")
     if math.isfinite(iv.low) and math.isfinite(iv.high):
         return iv.format()
     bound = row.get("flicker_rejection_ratio_at_least")
@@ -225,7 +236,7 @@ def key_table(rows: list[dict], study: Study) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for row in rows:
         cells = [str(row.get(a)) for a in study.axes]
-        cells += [fmt(row, f"{e}_flicker_per_pixel_s") for e in emulators]
+        cells += [flicker_cell(row, e) for e in emulators]
         cells += [ratio_text(row)]
         cells += [fmt(row, f"{e}_phase_locked_per_pixel_s") for e in emulators
                   if f"{e}_phase_locked_per_pixel_s" in rows[0]]
@@ -352,6 +363,6 @@ def comparison_table(rows: list[dict], study: Study) -> str:
                       if entry.emulator == e and f"{m}_ssim" in row and np.isfinite(row[f"{m}_ssim"])]
             best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
             ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
-            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:10.4g}  {fmt(row, f'{e}_flicker_per_pixel_s'):52s} "
+            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:10.4g}  {flicker_cell(row, e):52s} "
                          f"{fmt(row, f'{e}_noise_per_pixel_s'):52s} {best or '-':>12s} {ssim}")
     return "\n".join(lines)

@@ -120,3 +120,15 @@ def test_map_findings_never_print_a_negative_share():
     text = " ".join(map_findings(rows))
     assert "11 % of them" in text and "flicker removes events there" in text
     assert "-" not in text.replace("by-", "")
+
+
+def test_bus_limited_streams_get_no_ratio():
+    """When the readout limits a stream, run minus no-flicker counts measure the bus: the report says so."""
+    from gevsim.experiments.report import flicker_cell, ratio_text
+
+    row = {"flicker_rejection_ratio": float("nan"), "flicker_rejection_ratio_low": float("nan"),
+           "flicker_rejection_ratio_high": float("nan"), "dvs_bus_limited": False, "gradient_bus_limited": True,
+           "gradient_flicker_per_pixel_s": 0.01, "gradient_flicker_per_pixel_s_low": -0.02,
+           "gradient_flicker_per_pixel_s_high": 0.04}
+    assert ratio_text(row).startswith("not measurable: the readout limits gradient")
+    assert flicker_cell(row, "gradient").startswith("bus-limited: not distinguishable from zero")
