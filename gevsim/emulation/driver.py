@@ -36,7 +36,7 @@ from gevsim.emulation.emulators import (
 )
 from gevsim.emulation.summary import RunSummary
 from gevsim.errors import ConfigError, suggest
-from gevsim.events.readout import Readout, chip_share
+from gevsim.events.readout import Readout, chip_share, log_readouts
 from gevsim.illumination import from_spec, mix_poses, weights_at
 from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
@@ -259,15 +259,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
             if progress:
                 progress(c + 1, len(chunks))
         readout = {EMULATORS[n].stream: r.summary() for n, r in readouts.items()}
-        for stream, counts_of in readout.items():
-            if counts_of["delayed"] or counts_of["dropped"] or counts_of["pending_at_end"]:
-                # Waits under a millisecond with nothing lost are normal bus traffic: said at INFO level.
-                lost = counts_of["dropped"] or counts_of["pending_at_end"] or counts_of["max_delay_us"] > 1000.0
-                log.log(logging.WARNING if lost else logging.INFO,
-                        "readout of %s: %d of %d events delayed (mean %.3g us, max %.3g us), %d dropped, %d still "
-                        "queued at the end (%.3g events/s at the most)", stream, counts_of["delayed"],
-                        counts_of["requested"], counts_of["mean_delay_us"], counts_of["max_delay_us"],
-                        counts_of["dropped"], counts_of["pending_at_end"], counts_of["max_rate_eps"])
+        log_readouts(readout)
         wr.set_attrs("/", readout_json=json.dumps(readout, sort_keys=True, default=float))
         wr.close(t_end_us=end_us, before_commit=before_commit)
     pixel_steps = n_steps * sub * h * w

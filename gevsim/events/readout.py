@@ -17,6 +17,7 @@ results do not depend on the chunks.
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -25,10 +26,12 @@ from numba import njit
 from gevsim.pixel._kernels import normal, pixel_bits, stream_key
 from gevsim.pixel.params import ReadoutParams
 
+log = logging.getLogger(__name__)
+
 #: The latency spread is truncated at this many sigma.
 JITTER_TRUNCATION = 3.0
 
-__all__ = ["Readout", "ReadoutParams", "chip_share"]
+__all__ = ["Readout", "ReadoutParams", "chip_share", "log_readouts"]
 
 
 @njit(cache=True)
@@ -57,16 +60,33 @@ def _serve(t_us, service_us, max_delay_us, free_us, keep, t_out):
     return free_us, delayed, dropped, total, longest
 
 
+def log_readouts(summaries: dict[str, dict]) -> None:
+    """Log each stream's readout counts (:meth:`Readout.summary`): WARNING where events were lost or waited
+    over a millisecond, INFO for ordinary sub-millisecond bus traffic, nothing where nothing happened."""
+    for stream, c in summaries.items():
+        if not (c["delayed"] or c["dropped"] or c["pending_at_end"] or c["rate_controller_dropped"]):
+            continue
+        lost = c["dropped"] or c["pending_at_end"] or c["rate_controller_dropped"] or c["max_delay_us"] > 1000.0
+        log.log(logging.WARNING if lost else logging.INFO,
+                "readout of %s: %d of %d events delayed (mean %.3g us, max %.3g us), %d dropped, %d still queued at "
+                "the end (%.3g events/s at the most), %d dropped by the rate controller", stream, c["delayed"],
+                c["requested"], c["mean_delay_us"], c["max_delay_us"], c["dropped"], c["pending_at_end"],
+                c["max_rate_eps"], c["rate_controller_dropped"])
+
+
 def chip_share(params: ReadoutParams, *, emulated_px: int, chip_px: int) -> ReadoutParams:
     """The bus an emulation of ``emulated_px`` pixels gets of a chip of ``chip_px``: the same events per
     pixel per second, ``max_rate_eps x emulated_px / chip_px``. An emulation at a coarser resolution than
     the chip views the same field (each emulated pixel stands for chip_px / emulated_px chip pixels firing
-    alike), so a 96x72 run of a DAVIS346 (12 Meps over 346x260: 133 ev/px/s) may deliver 0.92 Meps, not 12."""
+    alike), so a 96x72 run of a DAVIS346 (12 Meps over 346x260: 133 ev/px/s) may deliver 0.92 Meps, not 12.
+    The rate controller's target is shared the same way."""
     import dataclasses
 
     if emulated_px < 1 or chip_px < 1:
         raise ValueError(f"pixel counts must be >= 1, got {emulated_px} and {chip_px}")
-    return dataclasses.replace(params, max_rate_eps=params.max_rate_eps * emulated_px / chip_px)
+    share = emulated_px / chip_px
+    return dataclasses.replace(params, max_rate_eps=params.max_rate_eps * share,
+                               rate_controller_eps=params.rate_controller_eps * share)
 
 
 @njit(cache=True)
@@ -97,6 +117,9 @@ class Readout:
         self.params = params
         self.key = np.uint64(key)
         self.held: np.ndarray | None = None  # delayed events not yet released (sorted by their new time)
+        self.erc_held: np.ndarray | None = None  # events of the rate controller's unfinished period
+        self.erc_dropped = 0
+        self.horizon_us = -math.inf
         self.free_us = -math.inf
         self.requested = self.delayed = self.dropped = self.pending = 0
         self.total_delay_us = self.longest_delay_us = 0.0
@@ -124,10 +147,38 @@ class Readout:
         if until_us is None:
             self.held = None
             return moved
-        earliest = until_us + max(p.latency_s * 1e6 - JITTER_TRUNCATION * jitter_us, 0.0)
-        cut = int(np.searchsorted(moved["t"], math.floor(earliest), side="left"))
+        earliest = math.floor(until_us + max(p.latency_s * 1e6 - JITTER_TRUNCATION * jitter_us, 0.0))
+        cut = int(np.searchsorted(moved["t"], earliest, side="left"))
         self.held = moved[cut:]
+        self.horizon_us = earliest  # every later event comes at or after it
         return moved[:cut]
+
+    def _rate_controller(self, events: np.ndarray, horizon_us: float | None) -> np.ndarray:
+        """The on-chip event-rate controller (Prophesee ESP "ERC": it keeps the event rate below a target by
+        dropping events): in each reference period [k T, (k + 1) T) holding n > N = floor(target T) events,
+        N of them are kept, spread evenly over the period's events (the i-th kept when floor((i + 1) N / n)
+        > floor(i N / n)). A period is decided once every event in it is known (``horizon_us``: all later
+        events come at or after it; None: all are known)."""
+        p = self.params
+        if self.erc_held is not None and len(self.erc_held):
+            events = np.concatenate([self.erc_held, events])
+        period_us = p.rate_controller_period_s * 1e6
+        window = np.floor(events["t"] / period_us).astype(np.int64)
+        if horizon_us is not None:
+            done = window < math.floor(horizon_us / period_us)
+            self.erc_held, events, window = events[~done], events[done], window[done]
+        else:
+            self.erc_held = None
+        if len(events) == 0:
+            return events
+        allowed = int(math.floor(p.rate_controller_eps * p.rate_controller_period_s))
+        starts = np.flatnonzero(np.r_[True, window[1:] != window[:-1]])
+        counts = np.diff(np.r_[starts, len(events)])
+        n = np.repeat(counts, counts)
+        rank = np.arange(len(events)) - np.repeat(starts, counts)
+        keep = (n <= allowed) | ((rank + 1) * allowed // n > rank * allowed // n)
+        self.erc_dropped += int(np.count_nonzero(~keep))
+        return events[keep]
 
     def process(self, events: np.ndarray, *, end_us: int | None = None, until_us: float | None = None) -> np.ndarray:
         """The events as read out: delayed by the pixel latency, then to the bus's pace (``t`` in
@@ -135,8 +186,12 @@ class Readout:
         end) left out as pending; counts updated. ``until_us``: every later request comes at or after
         it (the chunk's end; None: this is the last chunk)."""
         self.requested += len(events)
+        horizon: float | None = until_us
         if self.delays:
             events = self._latency(events, until_us)
+            horizon = None if until_us is None else self.horizon_us
+        if math.isfinite(self.params.rate_controller_eps):
+            events = self._rate_controller(events, horizon)
         if not self.limited or len(events) == 0:
             if end_us is not None and self.delays:
                 late = events["t"] > end_us
@@ -161,7 +216,9 @@ class Readout:
 
     def summary(self) -> dict:
         """Counts for the run summary and the file's attributes."""
-        return {"requested": self.requested, "delivered": self.requested - self.dropped - self.pending,
+        return {"requested": self.requested,
+                "delivered": self.requested - self.dropped - self.pending - self.erc_dropped,
+                "rate_controller_dropped": self.erc_dropped,
                 "delayed": self.delayed, "dropped": self.dropped, "pending_at_end": self.pending,
                 "mean_delay_us": self.total_delay_us / self.delayed if self.delayed else 0.0,
                 "max_delay_us": self.longest_delay_us, "max_rate_eps": self.params.max_rate_eps}

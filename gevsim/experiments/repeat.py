@@ -189,7 +189,8 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     return record
 
 
-#: A stream is bus-limited when its readout lost events (dropped, or still queued at the end) or made them
+#: A stream is bus-limited when its readout lost events (dropped by the arbiter or the rate controller, or
+#: still queued at the end) or made them
 #: wait longer than this on average: then its counts say what the bus delivered, not what the pixels made.
 BUS_LIMITED_MEAN_DELAY_US = 100.0
 
@@ -201,7 +202,8 @@ def _bus_limited(path: Path) -> list[str]:
     with EventReader(path) as r:
         readout = json.loads(str(r.attrs.get("readout_json", "{}")))
     return sorted(stream for stream, c in readout.items()
-                  if c["dropped"] or c["pending_at_end"] or c["mean_delay_us"] > BUS_LIMITED_MEAN_DELAY_US)
+                  if c["dropped"] or c["pending_at_end"] or c.get("rate_controller_dropped", 0)
+                  or c["mean_delay_us"] > BUS_LIMITED_MEAN_DELAY_US)
 
 
 def _render_quality(quality: dict) -> dict:

@@ -216,6 +216,9 @@ class ReadoutParams(FromTable):
         (comparator, handshake): the latency floor.
     latency_jitter_s : sigma of that delay's spread from event to event (a normal, truncated at
         +-3 sigma and at zero delay).
+    rate_controller_eps : the on-chip event-rate controller's target (Prophesee ESP "ERC", an option of
+        the IMX636; ``inf``: off): events beyond it are dropped, spread evenly over each reference period.
+    rate_controller_period_s : its reference period.
     """
 
     TABLE = "readout"
@@ -224,8 +227,12 @@ class ReadoutParams(FromTable):
     max_delay_s: float = math.inf
     latency_s: float = 0.0
     latency_jitter_s: float = 0.0
+    rate_controller_eps: float = math.inf
+    rate_controller_period_s: float = 200e-6
 
     def __post_init__(self):
+        real(self.rate_controller_eps, "rate_controller_eps", low=0, low_open=True, allow_inf=True)
+        real(self.rate_controller_period_s, "rate_controller_period_s", low=0, low_open=True)
         real(self.latency_s, "latency_s", low=0)
         real(self.latency_jitter_s, "latency_jitter_s", low=0)
         real(self.max_rate_eps, "max_rate_eps", low=0, low_open=True, allow_inf=True)

@@ -92,3 +92,40 @@ def _delays(requests, delivered):
     out = Readout(ReadoutParams(latency_s=20e-6, latency_jitter_s=4e-6), key=9).process(req)
     got = out["y"].astype(np.int64) * 30000 + out["x"]
     return out["t"] - req["t"][got]
+
+
+def test_rate_controller_keeps_each_period_at_its_target_spread_evenly():
+    """ERC: a period holding n > N = target x T events keeps N of them, evenly spread; quieter periods pass."""
+    params = ReadoutParams(rate_controller_eps=1e6, rate_controller_period_s=200e-6)  # N = 200 per period
+    ev = _requests(100_000, 4e6, seed=3)  # ~800 per period: 3/4 dropped
+    ids = np.arange(len(ev))
+    ev["x"], ev["y"] = (ids % 300).astype(np.int16), (ids // 300).astype(np.int16)  # an event's id
+    quiet = _requests(50, 1e5, seed=4)
+    quiet["y"] = -1
+    quiet["t"] += int(ev["t"][-1]) + 1000
+    ev = np.concatenate([ev, quiet])
+    r = Readout(params)
+    out = r.process(ev)
+    per_period = np.bincount(out["t"] // 200)
+    assert per_period.max() == 200
+    assert r.summary()["rate_controller_dropped"] == len(ev) - len(out)
+    assert np.all(np.isin(quiet["t"], out["t"]))  # the quiet tail is untouched
+    busy = ev[ev["t"] // 200 == 10]
+    kept = out[out["t"] // 200 == 10]
+    assert len(kept) == 200
+    idx = np.sort(kept["y"].astype(np.int64) * 300 + kept["x"])  # ids: evenly spread, gaps of n / N events, +-1
+    gaps = np.diff(idx)
+    assert gaps.min() >= len(busy) // 200 - 1 and gaps.max() <= len(busy) // 200 + 2
+    # Chunk independence: the same events in three chunks.
+    r2 = Readout(params)
+    cuts = [0, 30_000, 30_001, len(ev)]
+    parts = [r2.process(ev[a:b], until_us=None if b == len(ev) else int(ev["t"][b]))
+             for a, b in zip(cuts[:-1], cuts[1:])]
+    np.testing.assert_array_equal(np.concatenate(parts), out)
+
+
+def test_the_chip_share_scales_the_rate_controller_too():
+    from gevsim.events.readout import chip_share
+
+    share = chip_share(ReadoutParams(rate_controller_eps=1e8), emulated_px=100, chip_px=1000)
+    assert share.rate_controller_eps == pytest.approx(1e7)
