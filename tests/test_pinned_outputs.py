@@ -60,8 +60,8 @@ PINS = {
     "reconstruct.sor_rc": "bb63bd2e69e1c08eca1f16872604994330592002ef863103ab74dce4eb97fc6e",
     "reconstruct.direct": "55b8d418c891ccedf23674cd57c5e3f071e5409d1b3fa49f765ae3fc54485712",
     "reconstruct.high_pass": "19e50610e38aec048a5f75ae014603524b2989dad6cf9eb0929393e9ab4bcb29",
-    "driver_one_pose.h5": "aea63867547a4fda2bae09144320a48079e0fb28bb956093721da783ce0a1d7e",
-    "driver.h5": "ae6f3700d1fa99aff2d873b855efe15fb4b2aac9bb8950831936f1b82920a282",
+    "driver_one_pose.h5": "ae859efe0ebac2d9dfe75a4537ee2e079be5970ca4472df57e68611c3bbf0dcb",
+    "driver.h5": "224b60b96875ae7bc346f51e7858b71456d443ad55a006f4f5ee3e0f1650b0f5",
 }
 
 

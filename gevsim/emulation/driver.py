@@ -209,7 +209,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
                  for name, entry in EMULATORS.items() if name in config.emulators}
     readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
     bus = chip_share(preset.readout, emulated_px=h * w, chip_px=preset.width * preset.height)
-    readouts = {name: Readout(bus, key=int(readout_key) + EMULATORS[name].seed_slot)
+    readouts = {name: Readout(bus, key=int(readout_key) + EMULATORS[name].seed_slot, shape=(h, w))
                 for name in emulators}  # each stream: the sensor's own bus
     end_us = int(round(setup.duration_s * 1e6))
     aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))

@@ -64,14 +64,15 @@ def log_readouts(summaries: dict[str, dict]) -> None:
     """Log each stream's readout counts (:meth:`Readout.summary`): WARNING where events were lost or waited
     over a millisecond, INFO for ordinary sub-millisecond bus traffic, nothing where nothing happened."""
     for stream, c in summaries.items():
-        if not (c["delayed"] or c["dropped"] or c["pending_at_end"] or c["rate_controller_dropped"]):
+        filtered = c["rate_controller_dropped"] + c["anti_flicker_dropped"]
+        if not (c["delayed"] or c["dropped"] or c["pending_at_end"] or filtered):
             continue
-        lost = c["dropped"] or c["pending_at_end"] or c["rate_controller_dropped"] or c["max_delay_us"] > 1000.0
+        lost = c["dropped"] or c["pending_at_end"] or filtered or c["max_delay_us"] > 1000.0
         log.log(logging.WARNING if lost else logging.INFO,
                 "readout of %s: %d of %d events delayed (mean %.3g us, max %.3g us), %d dropped, %d still queued at "
-                "the end (%.3g events/s at the most), %d dropped by the rate controller", stream, c["delayed"],
-                c["requested"], c["mean_delay_us"], c["max_delay_us"], c["dropped"], c["pending_at_end"],
-                c["max_rate_eps"], c["rate_controller_dropped"])
+                "the end (%.3g events/s at the most), %d dropped by the rate controller, %d by the anti-flicker "
+                "filter", stream, c["delayed"], c["requested"], c["mean_delay_us"], c["max_delay_us"], c["dropped"],
+                c["pending_at_end"], c["max_rate_eps"], c["rate_controller_dropped"], c["anti_flicker_dropped"])
 
 
 def chip_share(params: ReadoutParams, *, emulated_px: int, chip_px: int) -> ReadoutParams:
@@ -113,8 +114,17 @@ class Readout:
     key : keys the latency spread (a stream's own; any integer when ``latency_jitter_s`` is 0).
     """
 
-    def __init__(self, params: ReadoutParams, *, key: int = 0):
+    def __init__(self, params: ReadoutParams, *, key: int = 0, shape: tuple[int, int] | None = None):
         self.params = params
+        self.afk = None
+        if params.anti_flicker:
+            if shape is None:
+                raise ValueError("the anti-flicker filter needs the sensor's shape=(H, W)")
+            from gevsim.events.antiflicker import AntiFlicker, AntiFlickerParams
+
+            self.afk = AntiFlicker(shape, AntiFlickerParams(
+                min_hz=params.anti_flicker_min_hz, max_hz=params.anti_flicker_max_hz,
+                cycles=params.anti_flicker_cycles, tolerance=params.anti_flicker_tolerance))
         self.key = np.uint64(key)
         self.held: np.ndarray | None = None  # delayed events not yet released (sorted by their new time)
         self.erc_held: np.ndarray | None = None  # events of the rate controller's unfinished period
@@ -123,6 +133,10 @@ class Readout:
         self.free_us = -math.inf
         self.requested = self.delayed = self.dropped = self.pending = 0
         self.total_delay_us = self.longest_delay_us = 0.0
+
+    @property
+    def afk_dropped(self) -> int:
+        return 0 if self.afk is None else self.afk.dropped
 
     @property
     def limited(self) -> bool:
@@ -190,6 +204,8 @@ class Readout:
         if self.delays:
             events = self._latency(events, until_us)
             horizon = None if until_us is None else self.horizon_us
+        if self.afk is not None:
+            events = self.afk.process(events)
         if math.isfinite(self.params.rate_controller_eps):
             events = self._rate_controller(events, horizon)
         if not self.limited or len(events) == 0:
@@ -217,8 +233,8 @@ class Readout:
     def summary(self) -> dict:
         """Counts for the run summary and the file's attributes."""
         return {"requested": self.requested,
-                "delivered": self.requested - self.dropped - self.pending - self.erc_dropped,
-                "rate_controller_dropped": self.erc_dropped,
+                "delivered": self.requested - self.dropped - self.pending - self.erc_dropped - self.afk_dropped,
+                "rate_controller_dropped": self.erc_dropped, "anti_flicker_dropped": self.afk_dropped,
                 "delayed": self.delayed, "dropped": self.dropped, "pending_at_end": self.pending,
                 "mean_delay_us": self.total_delay_us / self.delayed if self.delayed else 0.0,
                 "max_delay_us": self.longest_delay_us, "max_rate_eps": self.params.max_rate_eps}

@@ -219,6 +219,10 @@ class ReadoutParams(FromTable):
     rate_controller_eps : the on-chip event-rate controller's target (Prophesee ESP "ERC", an option of
         the IMX636; ``inf``: off): events beyond it are dropped, spread evenly over each reference period.
     rate_controller_period_s : its reference period.
+    anti_flicker : the on-chip anti-flicker filter (Prophesee ESP "AFK", an IMX636 option;
+        :mod:`gevsim.events.antiflicker`): events of 4x4-pixel blocks flickering between
+        ``anti_flicker_min_hz`` and ``anti_flicker_max_hz`` are dropped; ``anti_flicker_cycles`` periods
+        within ``anti_flicker_tolerance`` of each other mark a block.
     """
 
     TABLE = "readout"
@@ -229,8 +233,22 @@ class ReadoutParams(FromTable):
     latency_jitter_s: float = 0.0
     rate_controller_eps: float = math.inf
     rate_controller_period_s: float = 200e-6
+    anti_flicker: bool = False
+    anti_flicker_min_hz: float = 50.0
+    anti_flicker_max_hz: float = 500.0
+    anti_flicker_cycles: int = 4
+    anti_flicker_tolerance: float = 0.1
 
     def __post_init__(self):
+        if not isinstance(self.anti_flicker, bool):
+            raise FieldError("anti_flicker", f"anti_flicker must be true or false, got {self.anti_flicker!r}")
+        real(self.anti_flicker_min_hz, "anti_flicker_min_hz", low=0, low_open=True)
+        real(self.anti_flicker_max_hz, "anti_flicker_max_hz", low=self.anti_flicker_min_hz, low_open=True)
+        if isinstance(self.anti_flicker_cycles, bool) or not isinstance(self.anti_flicker_cycles, int) \
+                or self.anti_flicker_cycles < 1:
+            raise FieldError("anti_flicker_cycles",
+                             f"anti_flicker_cycles must be an integer >= 1, got {self.anti_flicker_cycles!r}")
+        real(self.anti_flicker_tolerance, "anti_flicker_tolerance", low=0, low_open=True, high=1.0)
         real(self.rate_controller_eps, "rate_controller_eps", low=0, low_open=True, allow_inf=True)
         real(self.rate_controller_period_s, "rate_controller_period_s", low=0, low_open=True)
         real(self.latency_s, "latency_s", low=0)
