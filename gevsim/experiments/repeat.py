@@ -189,21 +189,22 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     return record
 
 
-#: A stream is bus-limited when its readout lost events (dropped by the arbiter or the rate controller, or
-#: still queued at the end) or made them
-#: wait longer than this on average: then its counts say what the bus delivered, not what the pixels made.
-BUS_LIMITED_MEAN_DELAY_US = 100.0
+#: A stream is bus-limited when its readout lost more than this share of the requested events (dropped by
+#: the arbiter or the rate controller, or still queued at the end): then its counts say what the bus
+#: delivered, not what the pixels made. (Waits alone do not change counts: synchronous flicker bursts queue
+#: events for a while even where the mean rate fits the bus.)
+BUS_LIMITED_SHARE = 0.01
 
 
 def _bus_limited(path: Path) -> list[str]:
-    """The streams of an emulation file whose readout limited them (:data:`BUS_LIMITED_MEAN_DELAY_US`)."""
+    """The streams of an emulation file whose readout limited their counts (:data:`BUS_LIMITED_SHARE`)."""
     from gevsim.io import EventReader
 
     with EventReader(path) as r:
         readout = json.loads(str(r.attrs.get("readout_json", "{}")))
     return sorted(stream for stream, c in readout.items()
-                  if c["dropped"] or c["pending_at_end"] or c.get("rate_controller_dropped", 0)
-                  or c["mean_delay_us"] > BUS_LIMITED_MEAN_DELAY_US)
+                  if c["dropped"] + c["pending_at_end"] + c.get("rate_controller_dropped", 0)
+                  > BUS_LIMITED_SHARE * c["requested"])
 
 
 def _render_quality(quality: dict) -> dict:

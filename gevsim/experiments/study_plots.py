@@ -151,13 +151,15 @@ def headline(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[st
     """Rejection ratio (DVS / gradient flicker-induced events) with Fieller intervals against the swept axis."""
     if "flicker_rejection_ratio" not in rows[0]:
         return None
+    values = [r[k] for r in rows for k in ("flicker_rejection_ratio", "flicker_rejection_ratio_low")
+              if np.isfinite(r.get(k, math.nan))]
+    if not values:  # every run bus-limited (or without a ratio): nothing to draw
+        return None
     x = x_axis(study)
     _, label = series_labels(study)
     groups = list(dict.fromkeys(label(r) for r in rows))
     fig, ax = plt.subplots(figsize=(8.5, 5.6))
     spread = np.geomspace(0.97, 1.03, len(groups)) if len(groups) > 1 and _log_x(rows, x) else np.ones(len(groups))
-    values = [r[k] for r in rows for k in ("flicker_rejection_ratio", "flicker_rejection_ratio_low")
-              if np.isfinite(r.get(k, math.nan))]
     symlog = any(v <= 0 for v in values)  # flicker removed gradient events somewhere: show the sign
     numeric, xs, labels = True, [], []
     bound_label: str | None = "lower bound (gradient rate not distinguishable from zero)"
@@ -189,7 +191,8 @@ def headline(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[st
     return ("headline.png", "How many times fewer flicker-induced events gradient events carry than DVS events "
                             "(> 1: gradients reject the flicker), with 95 % intervals (Fieller, paired repeats); "
                             "arrows: the interval is open-ended; triangles: a one-sided lower bound where the "
-                            "gradient rate is not distinguishable from zero; dashed: no rejection.")
+                            "gradient rate is not distinguishable from zero; dashed: no rejection; runs whose "
+                            "readout limits DVS or gradient events have no ratio (not drawn).")
 
 
 def rates(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, str]:
