@@ -53,12 +53,14 @@ class DsecSlicer:
 
 @pytest.fixture(scope="module")
 def emulation(tmp_path_factory):
-    """A rendered card scene, davis346 noise, APS frames: every kind of dataset the driver writes."""
+    """A rendered card scene, davis346 noise, APS frames: every kind of dataset the driver writes (with an
+    unlimited bus: the chip's bus per pixel would queue most of this small moving card's events)."""
     tmp = tmp_path_factory.mktemp("dsec")
     cfg = tmp / "run.toml"
     cfg.write_text(f'[emulation]\nscene = "{DATA / "card.toml"}"\nsensor = "davis346"\nseed = 4\nstep_s = 2e-5\n'
                    'frame_rate_hz = 1000.0\naps = true\naps_exposure_s = 5e-4\n'
-                   'emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]\n[render]\nwidth = 32\nheight = 24\n')
+                   'emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]\n[render]\nwidth = 32\nheight = 24\n'
+                   '[sensor]\nmax_rate_eps = inf\n')
     run(load_config(cfg), tmp / "run.h5", cache_dir=tmp / "cache")
     return tmp / "run.h5"
 
