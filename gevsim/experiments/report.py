@@ -44,10 +44,10 @@ def write_table(folder: Path, rows: list[dict]) -> None:
     (folder / "results.json").write_text(json.dumps(rows, indent=1, default=float))
 
 
-def flicker_cell(row: dict, emulator: str) -> str:
-    """An emulator's flicker-induced rate, marked where the readout limited the stream (the difference of two
-    runs then measures the bus, not the pixels)."""
-    text = fmt(row, f"{emulator}_flicker_per_pixel_s")
+def flicker_cell(row: dict, emulator: str, what: str = "flicker") -> str:
+    """An emulator's flicker- (or noise-) induced rate, marked where the readout limited the stream (the
+    difference of two runs then measures the bus, not the pixels)."""
+    text = fmt(row, f"{emulator}_{what}_per_pixel_s")
     return f"bus-limited: {text}" if row.get(f"{emulator}_bus_limited") else text
 
 
@@ -240,7 +240,7 @@ def key_table(rows: list[dict], study: Study) -> str:
         cells += [ratio_text(row)]
         cells += [fmt(row, f"{e}_phase_locked_per_pixel_s") for e in emulators
                   if f"{e}_phase_locked_per_pixel_s" in rows[0]]
-        cells += [fmt(row, f"{e}_noise_per_pixel_s") for e in ("dvs", "gradient") if e in emulators]
+        cells += [flicker_cell(row, e, "noise") for e in ("dvs", "gradient") if e in emulators]
         cells += [fmt(row, f"{m}_ssim") for m in methods]
         cells += [_render_spp(row), _render_error(row)]
         lines.append("| " + " | ".join(cells) + " |")
@@ -364,5 +364,5 @@ def comparison_table(rows: list[dict], study: Study) -> str:
             best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
             ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
             lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:10.4g}  {flicker_cell(row, e):52s} "
-                         f"{fmt(row, f'{e}_noise_per_pixel_s'):52s} {best or '-':>12s} {ssim}")
+                         f"{flicker_cell(row, e, 'noise'):52s} {best or '-':>12s} {ssim}")
     return "\n".join(lines)
