@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -31,7 +34,7 @@ log = logging.getLogger(__name__)
 #: The latency spread is truncated at this many sigma.
 JITTER_TRUNCATION = 3.0
 
-__all__ = ["Readout", "ReadoutParams", "chip_share", "log_readouts"]
+__all__ = ["READOUT_STAGES", "Readout", "ReadoutParams", "Stage", "chip_share", "log_readouts"]
 
 
 @njit(cache=True)
@@ -105,111 +108,150 @@ def _delays_us(n, first, key, latency_us, jitter_us):
     return out
 
 
-class Readout:
-    """Stateful readout of one event stream across chunks (events of a chunk in time order).
+class Latency:
+    """The pixels' latency floor and jitter (a :data:`READOUT_STAGES` entry): each event delayed by
+    ``latency_s`` plus ``latency_jitter_s`` times a truncated normal keyed by (key, event index); delayed
+    events that a later request could still precede are held back."""
 
-    Parameters
-    ----------
-    params : the sensor's readout.
-    key : keys the latency spread (a stream's own; any integer when ``latency_jitter_s`` is 0).
-    """
-
-    def __init__(self, params: ReadoutParams, *, key: int = 0, shape: tuple[int, int] | None = None):
+    def __init__(self, params: ReadoutParams, *, key: int, shape: tuple[int, int] | None):
         self.params = params
-        self.afk = None
-        if params.anti_flicker:
-            if shape is None:
-                raise ValueError("the anti-flicker filter needs the sensor's shape=(H, W)")
-            from gevsim.events.antiflicker import AntiFlicker, AntiFlickerParams
-
-            self.afk = AntiFlicker(shape, AntiFlickerParams(
-                min_hz=params.anti_flicker_min_hz, max_hz=params.anti_flicker_max_hz,
-                cycles=params.anti_flicker_cycles, tolerance=params.anti_flicker_tolerance))
         self.key = np.uint64(key)
-        self.held: np.ndarray | None = None  # delayed events not yet released (sorted by their new time)
-        self.erc_held: np.ndarray | None = None  # events of the rate controller's unfinished period
-        self.erc_dropped = 0
-        self.horizon_us = -math.inf
-        self.free_us = -math.inf
-        self.requested = self.delayed = self.dropped = self.pending = 0
-        self.total_delay_us = self.longest_delay_us = 0.0
+        self.held: np.ndarray | None = None
 
-    @property
-    def afk_dropped(self) -> int:
-        return 0 if self.afk is None else self.afk.dropped
-
-    @property
-    def limited(self) -> bool:
-        return math.isfinite(self.params.max_rate_eps)
-
-    @property
-    def delays(self) -> bool:
-        return self.params.latency_s > 0 or self.params.latency_jitter_s > 0
-
-    def _latency(self, events: np.ndarray, until_us: float | None) -> np.ndarray:
-        """The events delayed by the pixel latency, merged with those held from earlier chunks, in
-        time order; those that a later request (at or after ``until_us``; None: there is none) could
-        still precede are held back."""
+    def process(self, events: np.ndarray, horizon_us: float | None, first: int) -> tuple[np.ndarray, float | None]:
         p = self.params
         jitter_us = p.latency_jitter_s * 1e6
-        delay = _delays_us(len(events), self.requested - len(events), self.key, p.latency_s * 1e6, jitter_us)
+        delay = _delays_us(len(events), first, self.key, p.latency_s * 1e6, jitter_us)
         moved = events.copy()
         moved["t"] = np.floor(events["t"] + delay).astype(np.int64)
         if self.held is not None and len(self.held):
             moved = np.concatenate([self.held, moved])
         moved = moved[np.argsort(moved["t"], kind="stable")]
-        if until_us is None:
+        if horizon_us is None:
             self.held = None
-            return moved
-        earliest = math.floor(until_us + max(p.latency_s * 1e6 - JITTER_TRUNCATION * jitter_us, 0.0))
+            return moved, None
+        earliest = math.floor(horizon_us + max(p.latency_s * 1e6 - JITTER_TRUNCATION * jitter_us, 0.0))
         cut = int(np.searchsorted(moved["t"], earliest, side="left"))
         self.held = moved[cut:]
-        self.horizon_us = earliest  # every later event comes at or after it
-        return moved[:cut]
+        return moved[:cut], earliest  # every later event comes at or after it
 
-    def _rate_controller(self, events: np.ndarray, horizon_us: float | None) -> np.ndarray:
-        """The on-chip event-rate controller (Prophesee ESP "ERC": it keeps the event rate below a target by
-        dropping events): in each reference period [k T, (k + 1) T) holding n > N = floor(target T) events,
-        N of them are kept, spread evenly over the period's events (the i-th kept when floor((i + 1) N / n)
-        > floor(i N / n)). A period is decided once every event in it is known (``horizon_us``: all later
-        events come at or after it; None: all are known)."""
+    def counts(self) -> dict:
+        return {}
+
+
+class RateController:
+    """The on-chip event-rate controller (Prophesee ESP "ERC": it keeps the event rate below a target by
+    dropping events; a :data:`READOUT_STAGES` entry): in each reference period [k T, (k + 1) T) holding
+    n > N = floor(target T) events, N of them are kept, spread evenly over the period's events (the i-th
+    kept when floor((i + 1) N / n) > floor(i N / n)). A period is decided once every event in it is known."""
+
+    def __init__(self, params: ReadoutParams, *, key: int, shape: tuple[int, int] | None):
+        self.params = params
+        self.held: np.ndarray | None = None
+        self.dropped = 0
+
+    def process(self, events: np.ndarray, horizon_us: float | None, first: int) -> tuple[np.ndarray, float | None]:
         p = self.params
-        if self.erc_held is not None and len(self.erc_held):
-            events = np.concatenate([self.erc_held, events])
+        if self.held is not None and len(self.held):
+            events = np.concatenate([self.held, events])
         period_us = p.rate_controller_period_s * 1e6
         window = np.floor(events["t"] / period_us).astype(np.int64)
         if horizon_us is not None:
-            done = window < math.floor(horizon_us / period_us)
-            self.erc_held, events, window = events[~done], events[done], window[done]
+            open_window = math.floor(horizon_us / period_us)
+            done = window < open_window
+            self.held, events, window = events[~done], events[done], window[done]
+            horizon_us = open_window * period_us  # held events come out later, from there on
         else:
-            self.erc_held = None
+            self.held = None
         if len(events) == 0:
-            return events
+            return events, horizon_us
         allowed = int(math.floor(p.rate_controller_eps * p.rate_controller_period_s))
         starts = np.flatnonzero(np.r_[True, window[1:] != window[:-1]])
         counts = np.diff(np.r_[starts, len(events)])
         n = np.repeat(counts, counts)
         rank = np.arange(len(events)) - np.repeat(starts, counts)
         keep = (n <= allowed) | ((rank + 1) * allowed // n > rank * allowed // n)
-        self.erc_dropped += int(np.count_nonzero(~keep))
-        return events[keep]
+        self.dropped += int(np.count_nonzero(~keep))
+        return events[keep], horizon_us
+
+    def counts(self) -> dict:
+        return {"rate_controller_dropped": self.dropped}
+
+
+class AntiFlickerStage:
+    """The on-chip anti-flicker filter (:mod:`gevsim.events.antiflicker`; a :data:`READOUT_STAGES` entry)."""
+
+    def __init__(self, params: ReadoutParams, *, key: int, shape: tuple[int, int] | None):
+        if shape is None:
+            raise ValueError("the anti-flicker filter needs the sensor's shape=(H, W)")
+        from gevsim.events.antiflicker import AntiFlicker, AntiFlickerParams
+
+        self.filter = AntiFlicker(shape, AntiFlickerParams(
+            min_hz=params.anti_flicker_min_hz, max_hz=params.anti_flicker_max_hz,
+            cycles=params.anti_flicker_cycles, tolerance=params.anti_flicker_tolerance))
+
+    def process(self, events: np.ndarray, horizon_us: float | None, first: int) -> tuple[np.ndarray, float | None]:
+        return self.filter.process(events), horizon_us
+
+    def counts(self) -> dict:
+        return {"anti_flicker_dropped": self.filter.dropped}
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One entry of :data:`READOUT_STAGES`: whether a readout has it, its class and its source."""
+
+    enabled: Callable[[ReadoutParams], bool]
+    build: Callable[..., Any]
+    source: str
+
+
+#: What happens to events between the comparators and the bus, in order (each stage its class and source);
+#: the arbiter and bus (``max_rate_eps``) come last in :class:`Readout`. Adding a mechanism is an entry here.
+READOUT_STAGES: dict[str, Stage] = {
+    "latency": Stage(lambda p: p.latency_s > 0 or p.latency_jitter_s > 0, Latency,
+                     "Lichtsteiner et al. 2008 (15 us minimum latency); IEBCS (latency and jitter)"),
+    "anti_flicker": Stage(lambda p: p.anti_flicker, AntiFlickerStage, "Prophesee ESP documentation (AFK)"),
+    "rate_controller": Stage(lambda p: math.isfinite(p.rate_controller_eps), RateController,
+                             "Prophesee ESP documentation (ERC)"),
+}
+
+
+class Readout:
+    """Stateful readout of one event stream across chunks (events of a chunk in time order): the
+    :data:`READOUT_STAGES` the params enable, then the arbiter and bus.
+
+    Parameters
+    ----------
+    params : the sensor's readout.
+    key : keys the latency spread (a stream's own; any integer when ``latency_jitter_s`` is 0).
+    shape : (H, W) of the pixel array (the anti-flicker filter's blocks need it).
+    """
+
+    def __init__(self, params: ReadoutParams, *, key: int = 0, shape: tuple[int, int] | None = None):
+        self.params = params
+        self.stages = {name: stage.build(params, key=key, shape=shape)
+                       for name, stage in READOUT_STAGES.items() if stage.enabled(params)}
+        self.free_us = -math.inf
+        self.requested = self.delayed = self.dropped = self.pending = 0
+        self.total_delay_us = self.longest_delay_us = 0.0
+
+    @property
+    def limited(self) -> bool:
+        return math.isfinite(self.params.max_rate_eps)
 
     def process(self, events: np.ndarray, *, end_us: int | None = None, until_us: float | None = None) -> np.ndarray:
-        """The events as read out: delayed by the pixel latency, then to the bus's pace (``t`` in
-        whole us), the ones that waited too long left out, and those read after ``end_us`` (the run's
-        end) left out as pending; counts updated. ``until_us``: every later request comes at or after
+        """The events as read out: through the enabled stages (latency, filters), then to the bus's pace
+        (``t`` in whole us), the ones that waited too long left out, and those read after ``end_us`` (the
+        run's end) left out as pending; counts updated. ``until_us``: every later request comes at or after
         it (the chunk's end; None: this is the last chunk)."""
+        first = self.requested
         self.requested += len(events)
         horizon: float | None = until_us
-        if self.delays:
-            events = self._latency(events, until_us)
-            horizon = None if until_us is None else self.horizon_us
-        if self.afk is not None:
-            events = self.afk.process(events)
-        if math.isfinite(self.params.rate_controller_eps):
-            events = self._rate_controller(events, horizon)
+        for stage in self.stages.values():
+            events, horizon = stage.process(events, horizon, first)
         if not self.limited or len(events) == 0:
-            if end_us is not None and self.delays:
+            if end_us is not None and self.stages:
                 late = events["t"] > end_us
                 self.pending += int(np.count_nonzero(late))
                 events = events[~late]
@@ -232,9 +274,11 @@ class Readout:
 
     def summary(self) -> dict:
         """Counts for the run summary and the file's attributes."""
+        filtered = {"rate_controller_dropped": 0, "anti_flicker_dropped": 0}
+        for stage in self.stages.values():
+            filtered.update(stage.counts())
         return {"requested": self.requested,
-                "delivered": self.requested - self.dropped - self.pending - self.erc_dropped - self.afk_dropped,
-                "rate_controller_dropped": self.erc_dropped, "anti_flicker_dropped": self.afk_dropped,
-                "delayed": self.delayed, "dropped": self.dropped, "pending_at_end": self.pending,
+                "delivered": self.requested - self.dropped - self.pending - sum(filtered.values()),
+                **filtered, "delayed": self.delayed, "dropped": self.dropped, "pending_at_end": self.pending,
                 "mean_delay_us": self.total_delay_us / self.delayed if self.delayed else 0.0,
                 "max_delay_us": self.longest_delay_us, "max_rate_eps": self.params.max_rate_eps}

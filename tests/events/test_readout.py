@@ -107,3 +107,16 @@ def test_an_emulation_gets_the_chips_bus_per_pixel():
     assert share.latency_s == p.readout.latency_s
     with pytest.raises(ValueError):
         chip_share(p.readout, emulated_px=0, chip_px=10)
+
+
+def test_readout_stages_are_a_registry_in_order():
+    """Each mechanism between the comparators and the bus is one READOUT_STAGES entry with its source; a
+    readout runs the enabled ones in the registry's order."""
+    from gevsim.events.readout import READOUT_STAGES, Readout
+    from gevsim.pixel.params import ReadoutParams
+
+    assert all(stage.source for stage in READOUT_STAGES.values())
+    everything = ReadoutParams(latency_s=1e-6, anti_flicker=True, rate_controller_eps=1e6)
+    assert list(Readout(everything, shape=(4, 4)).stages) == list(READOUT_STAGES)
+    assert list(Readout(ReadoutParams(rate_controller_eps=1e6)).stages) == ["rate_controller"]
+    assert not Readout(ReadoutParams()).stages
