@@ -82,6 +82,8 @@ def plot(preset: SensorPreset, curves: dict, out: Path) -> None:
                 ms=8, label=f"published {label} (IEBCS)")
     ax.set(xscale="log", yscale="log", xlabel="chip illuminance (lux)", ylabel="background activity (ev/px/s)",
            title=f"{preset.name}: DVS background activity")
+    ax.text(0.01, 0.02, "points at 1e-4: no event (0); bands: 95 % intervals", transform=ax.transAxes, fontsize=7,
+            color="0.3")
     ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
     fig.savefig(out / "ba_vs_lux.png", dpi=110)
