@@ -225,9 +225,11 @@ def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int) -> d
     """The done-marker of sequence ``index`` if it is finished for this config, else None.
 
     Finished means: the marker parses, names the config this sequence would run now, the same
-    contents of its scene's files (:func:`gevsim.render.inputs.scene_digest`) and this gevsim
-    version, and the shard (and EVREAL folder) exist.
+    contents of its scene's files (:func:`gevsim.render.inputs.scene_digest`), of its sensor preset
+    (:func:`gevsim.pixel.presets.preset_digest`) and this gevsim version, and the shard (and EVREAL folder)
+    exist.
     """
+    from gevsim.pixel.presets import preset_digest
     from gevsim.render.inputs import scene_digest
 
     marker, shard, evreal = _paths(out_dir, index)
@@ -235,7 +237,8 @@ def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int) -> d
         record = json.loads(marker.read_text())
         params = sequence_parameters(config, index)
         same = (tomllib.loads(record["config_toml"]) == tomllib.loads(sequence_config(config, params).to_toml())
-                and record["gevsim_version"] == __version__ and record["scene_sha256"] == scene_digest(params["scene"]))
+                and record["gevsim_version"] == __version__ and record["scene_sha256"] == scene_digest(params["scene"])
+                and record["sensor_sha256"] == preset_digest(params["sensor"]))
     except (OSError, ValueError, KeyError, TypeError):
         return None
     evreal_done = evreal.is_dir() or not config.evreal or record.get("evreal_skipped")
@@ -271,6 +274,7 @@ def _export_evreal(shard: Path, folder: Path, params: dict) -> str | None:
 def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: str | None = None) -> dict:
     """Make sequence ``index`` unless finished (picklable: what executors run). Returns a small dict."""
     from gevsim.emulation.driver import run
+    from gevsim.pixel.presets import preset_digest
     from gevsim.render.inputs import scene_digest
 
     done = finished(config, out_dir, index)
@@ -282,13 +286,14 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     params = sequence_parameters(config, index)
     emulation = sequence_config(config, params)
     scene_sha256 = scene_digest(params["scene"])  # before the run: an edit during it makes the next run redo it
+    sensor_sha256 = preset_digest(params["sensor"])
     summary = run(emulation, shard, cache_dir=cache_dir)
     skipped = _export_evreal(shard, evreal, params) if config.evreal else None
     seconds = time.perf_counter() - start
     record = {"index": index, "parameters": params, "config_toml": emulation.to_toml(), "counts": summary.counts,
               "frames": summary.frames, "width": summary.width, "height": summary.height,
               "shard": str(shard.relative_to(Path(out_dir))), "seconds": seconds, "gevsim_version": __version__,
-              "scene_sha256": scene_sha256,
+              "scene_sha256": scene_sha256, "sensor_sha256": sensor_sha256,
               "evreal": str(evreal.relative_to(Path(out_dir))) if config.evreal and not skipped else None}
     if skipped:
         record["evreal_skipped"] = skipped

@@ -106,6 +106,14 @@ class Study:
         return [dict(zip(names, values)) for values in itertools.product(*(self.axes[n] for n in names))]
 
 
+def _beside(value: object, study_file: Path) -> object:
+    """A relative ``.toml`` path in a study file, taken from the study file's folder (as datasets do), not
+    from the working directory: two folders' studies naming ``my.toml`` name different presets."""
+    if isinstance(value, str) and value.endswith(".toml") and not Path(value).is_absolute():
+        return str((study_file.parent / value).resolve())
+    return value
+
+
 def load_study(path: str | Path) -> Study:
     """Read and validate a study config; errors name the file and key."""
     path = Path(path)
@@ -154,6 +162,8 @@ def load_study(path: str | Path) -> Study:
         for v in sweep.get(axis, []):
             if not isinstance(v, str):
                 r.fail(f"sweep.{axis}", f"expected {what}, got {v!r}")
+    if isinstance(sweep.get("sensor"), list):
+        sweep["sensor"] = [_beside(v, path) for v in sweep["sensor"]]
     for method in st.get("methods", ["dct", "direct"]):
         try:
             needs = check_method(method).emulator
@@ -170,7 +180,8 @@ def load_study(path: str | Path) -> Study:
     grid = TimeGrid.from_section(st, source=src, where="study", base=STUDY_TIME)
     if not grid.frame_rate_hz > 0:  # reconstructions are scored at the ground-truth frames
         r.fail("study.frame_rate_hz", f"must be > 0 (frames score the reconstructions), got {grid.frame_rate_hz}")
-    base = {"scene": st["scene"], "sensor": st.get("sensor", "davis346"), "emulators": list(emulators),
+    base = {"scene": st["scene"], "sensor": _beside(st.get("sensor", "davis346"), path),
+            "emulators": list(emulators),
             "flicker_group": st["flicker_group"], "seed": r.number(st, "seed", "study", 0, minimum=0, integer=True),
             **dataclasses.asdict(grid),
             "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {})),
@@ -293,13 +304,16 @@ def run_config(study: Study, params: dict, *, seed: int | None = None) -> Emulat
 def run_id(study: Study, params: dict) -> str:
     """Identity of a run: its base settings and parameters (not the number of repeats, so a study given
     more repeats keeps the finished ones), the contents of every file its scene is made of (manifest,
-    builder, textures: :func:`gevsim.render.inputs.scene_digest`) and the gevsim version. A rerun after
-    any of them changed computes the run again."""
+    builder, textures: :func:`gevsim.render.inputs.scene_digest`), the contents of its sensor preset
+    (:func:`gevsim.pixel.presets.preset_digest`) and the gevsim version. A rerun after any of them changed
+    computes the run again."""
+    from gevsim.pixel.presets import preset_digest
     from gevsim.render.inputs import scene_digest
 
     base = {k: v for k, v in study.base.items() if k != "repeats"}
+    sensor = params.get("sensor", study.base["sensor"])
     payload = json.dumps({"base": base, "params": params, "scene_sha256": scene_digest(run_scene(study, params)),
-                          "gevsim": __version__}, sort_keys=True, default=str)
+                          "sensor_sha256": preset_digest(sensor), "gevsim": __version__}, sort_keys=True, default=str)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 

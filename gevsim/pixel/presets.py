@@ -93,8 +93,8 @@ def preset_names() -> dict[str, Path]:
     return resource_tomls("noise")
 
 
-def load_preset(name_or_path: str | Path) -> SensorPreset:
-    """Load a preset by name (``dvs128``, ``davis346``, ``imx636``, ``ideal``) or TOML path."""
+def preset_path(name_or_path: str | Path) -> Path:
+    """The file of a preset name (``davis346``) or TOML path (ConfigError for an unknown name)."""
     path = Path(name_or_path)
     if path.suffix != ".toml":
         names = preset_names()
@@ -102,6 +102,24 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
             raise ConfigError(f"unknown sensor preset {str(name_or_path)!r}{suggest(str(name_or_path), names)}; "
                               f"presets: {', '.join(names)}")
         path = names[str(name_or_path)]
+    return path
+
+
+def preset_digest(name_or_path: str | Path) -> str:
+    """sha256 of a preset file's bytes: what a finished run's identity records, so that editing a preset
+    makes the runs that used it compute again (a name or a path alone would not change)."""
+    import hashlib
+
+    path = preset_path(name_or_path)
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError as exc:
+        raise ConfigError(f"cannot read the sensor preset: {exc.strerror or exc}", source=str(path)) from None
+
+
+def load_preset(name_or_path: str | Path) -> SensorPreset:
+    """Load a preset by name (``dvs128``, ``davis346``, ``imx636``, ``ideal``) or TOML path."""
+    path = preset_path(name_or_path)
     src = str(path)
     raw = read_toml(path, what="sensor preset file")
     check_keys(raw, TABLES, source=src, where="")

@@ -267,3 +267,18 @@ def test_sequence_without_events_gets_no_evreal_folder_and_counts_as_done(tmp_pa
     assert not (out / "evreal" / "seq_00000").exists() and "not written" in caplog.text
     assert finished(config, out, 0) == record
     assert generate(config, out, cache_dir=tmp_path / "cache")["skipped"] == 1
+
+
+def test_an_edited_preset_file_redoes_the_sequence(tmp_path):
+    """Issue 24, item 4: a shard records its preset's contents; editing the preset makes it unfinished."""
+    from gevsim.pixel.presets import preset_path
+
+    preset = tmp_path / "my.toml"
+    preset.write_text(preset_path("davis346").read_text())
+    config = load_dataset_config(write_config(tmp_path, sequences=1, evreal=False, sensors=["my.toml"]))
+    out = tmp_path / "out"
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 1
+    assert finished(config, out, 0) is not None
+    preset.write_text(preset.read_text().replace("threshold_on_ln = 0.2 ", "threshold_on_ln = 0.3 "))
+    assert finished(config, out, 0) is None
+    assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 1

@@ -268,3 +268,24 @@ def test_a_second_study_on_the_same_folder_is_refused_with_one_line(tmp_path, ca
         holder.kill()  # kill -9: the lock goes with the process
         holder.wait()
     assert main(["study", str(cfg), "--out", str(out), "--cache", str(tmp_path / "c"), "-q"]) == 0
+
+
+def test_a_preset_edit_changes_the_run_id_and_relative_presets_are_the_study_files(tmp_path, monkeypatch):
+    """Issue 24, item 4: the run id covers the preset's contents (not its path), and a study's relative
+    sensor path is taken from the study file's folder, whatever the working directory."""
+    from gevsim.pixel.presets import preset_path
+
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "my.toml").write_text(preset_path("davis346").read_text())
+    (tmp_path / "b" / "my.toml").write_text(
+        (tmp_path / "b" / "my.toml").read_text().replace("threshold_on_ln = 0.2 ", "threshold_on_ln = 0.3 "))
+    monkeypatch.chdir(tmp_path)
+    studies = [load_study(write_study(tmp_path / f, sweep='waveform = ["dc"]\n', sensor="my.toml")) for f in "ab"]
+    assert studies[0].base["sensor"] == str((tmp_path / "a" / "my.toml").resolve())
+    ids = [study_mod.run_id(s, s.runs()[0]) for s in studies]
+    assert ids[0] != ids[1]  # same name, different presets
+    before = ids[0]
+    preset = tmp_path / "a" / "my.toml"
+    preset.write_text(preset.read_text().replace("leak_rate_hz = 0.05 ", "leak_rate_hz = 0.5 "))
+    assert study_mod.run_id(studies[0], studies[0].runs()[0]) != before
