@@ -71,12 +71,26 @@ def _windows(r: EventReader, stream: str, t_us) -> list[list[tuple[int, int]]]:
     return out
 
 
+def _decoding_inputs(r: EventReader, emulator: str, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The stored thresholds and initial ternary state of a gradient stream, checked (a file is untrusted:
+    the decoder indexes its tables with these values): ConfigError naming the file otherwise."""
+    theta = np.asarray(r.array(layout.thresholds_key(emulator)), dtype=np.float64)
+    raw = np.asarray(r.array(layout.initial_state_key(emulator)))
+    want = (2,) + tuple(shape)
+    if theta.shape != want or not np.all(np.isfinite(theta)) or not np.all(theta > 0):
+        raise ConfigError(f"corrupt {layout.thresholds_key(emulator)}: expected {want} finite positive thresholds",
+                          source=str(r.path))
+    if raw.shape != want or not np.issubdtype(raw.dtype, np.integer) or raw.min() < -1 or raw.max() > 1:
+        raise ConfigError(f"corrupt {layout.initial_state_key(emulator)}: expected a {want} ternary state "
+                          "(-1, 0, 1)", source=str(r.path))
+    return theta, raw.astype(np.int8)
+
+
 def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:
     """Decode ``emulator``'s gradient events up to each frame and solve with ``solver``."""
     def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
         stream = _stream(r, emulator)
-        theta = r.array(layout.thresholds_key(emulator)).astype(np.float64)
-        state = r.array(layout.initial_state_key(emulator)).astype(np.int8)
+        theta, state = _decoding_inputs(r, emulator, gt.shape[1:])
         reconstructor = GradientReconstructor(gt.shape[1:], theta, rc=rc, method=solver, c=c)
         frames = np.empty_like(gt)
         for k, windows in enumerate(_windows(r, stream, t_us)):

@@ -26,7 +26,7 @@ from gevsim._validate import real, real_list
 from gevsim.events import _kernels
 from gevsim.events._kernels import EVENT_TABLE
 from gevsim.events._runner import EventBlocks, SampledSignal
-from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, empty
+from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, empty, is_gradient
 
 PAPER_THRESHOLDS = (4 / 255, 8 / 255, 16 / 255)
 #: Default ln-unit thresholds of the physical emulator: the paper's 1:2:4 ratios, the largest
@@ -70,15 +70,16 @@ def encode(t_prev: np.ndarray, t_new: np.ndarray) -> np.ndarray:
 def decode(events: np.ndarray, initial: np.ndarray, *, t_us: int | None = None) -> np.ndarray:
     """Ternary state (2, H, W) after applying ``events`` with timestamps <= ``t_us``
     (all when None) to the ``initial`` state (2, H, W)."""
-    check_events(events, name="events")
+    initial = np.asarray(initial)
+    if initial.ndim != 3 or initial.shape[0] != 2:
+        raise ValueError(f"initial state must have shape (2, H, W), got {initial.shape}")
+    if initial.size and (not np.issubdtype(initial.dtype, np.integer) or initial.min() < -1 or initial.max() > 1):
+        raise ValueError("initial state values must be -1, 0 or 1 (ternary gradients)")
     state = np.array(initial, dtype=np.int8, copy=True)
-    if state.ndim != 3 or state.shape[0] != 2:
-        raise ValueError(f"initial state must have shape (2, H, W), got {state.shape}")
+    check_events(events, name="events", shape=(state.shape[1], state.shape[2]))
+    if not is_gradient(events):
+        raise TypeError("decode needs gradient events (with an axis field)")
     ev = events if t_us is None else events[events["t"] <= t_us]
-    if len(ev) and (ev["x"].max() >= state.shape[2] or ev["y"].max() >= state.shape[1]):
-        raise ValueError("events lie outside the state's (H, W)")
-    if len(ev) and np.any(ev["p"] == 0):
-        raise ValueError("gradient events must have p = +1 or -1")
     # Events are applied in order; a comparator may change several times.
     return _kernels.apply_gradient_events(state, ev["axis"], ev["y"], ev["x"], ev["p"], EVENT_TABLE)
 

@@ -61,7 +61,7 @@ from numpy.typing import ArrayLike
 
 from gevsim import __version__
 from gevsim.errors import ConfigError, suggest
-from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE
+from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE, check_events
 from gevsim.io.atomic import Staged
 
 log = logging.getLogger(__name__)
@@ -647,6 +647,10 @@ class EventReader:
         out = np.empty(b - a, dtype=dtype)
         for name in dtype.names or ():
             out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]  # uint8 0/1 -> bool where marked
+        try:  # a file is untrusted: compiled kernels index arrays with these values and do not check
+            check_events(out, name=f"/{stream}", shape=(self.height, self.width))
+        except ValueError as exc:
+            raise ConfigError(f"corrupt event data: {exc}", source=str(self.path)) from None
         return out
 
     def frames(self, name: str) -> tuple[np.ndarray, np.ndarray]:
