@@ -648,7 +648,8 @@ class EventReader:
         for name in dtype.names or ():
             out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]  # uint8 0/1 -> bool where marked
         try:  # a file is untrusted: compiled kernels index arrays with these values and do not check
-            check_events(out, name=f"/{stream}", shape=(self.height, self.width))
+            if out.dtype in (BRIGHTNESS_DTYPE, GRADIENT_DTYPE):
+                check_events(out, name=f"/{stream}", shape=(self.height, self.width))
         except ValueError as exc:
             raise ConfigError(f"corrupt event data: {exc}", source=str(self.path)) from None
         return out

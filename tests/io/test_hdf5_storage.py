@@ -34,6 +34,8 @@ def events(dtype, n, *, seed=0, t_max=50_000):
             ev[name] = rng.standard_normal(n)
         elif name == "p":
             ev[name] = rng.choice([-1, 1], n)
+        elif name in ("x", "y", "axis"):  # valid for the 64x48 file (readers check them)
+            ev[name] = rng.integers(0, {"x": META["width"], "y": META["height"], "axis": 2}[name], n)
         else:
             info = np.iinfo(kind)
             ev[name] = rng.integers(max(info.min, -1000), min(info.max, 1000) + 1, n)

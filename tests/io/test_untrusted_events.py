@@ -47,8 +47,9 @@ def test_crafted_events_are_refused_by_the_reader(good, tmp_path, capsys, datase
     stream = dataset.split("/")[0]
     with EventReader(path) as r, pytest.raises(ConfigError, match=text):
         r.read(stream)
-    for argv in (["reconstruct", str(path), "--method", "dct" if "gradient" in dataset else "direct", "--out",
-                  str(tmp_path / "rec"), "-q"], ["export", str(path), "--format", "aedat4", "--out", str(tmp_path / "x.aedat4")]):
+    method = "dct" if "gradient" in dataset else "direct"
+    for argv in (["reconstruct", str(path), "--method", method, "--out", str(tmp_path / "rec"), "-q"],
+                 ["export", str(path), "--format", "aedat4", "--out", str(tmp_path / "x.aedat4")]):
         assert cli.main(argv) == 2
         err = capsys.readouterr().err
         assert text in err and "Traceback" not in err
