@@ -647,11 +647,12 @@ class EventReader:
         out = np.empty(b - a, dtype=dtype)
         for name in dtype.names or ():
             out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]  # uint8 0/1 -> bool where marked
-        try:  # a file is untrusted: compiled kernels index arrays with these values and do not check
-            if out.dtype in (BRIGHTNESS_DTYPE, GRADIENT_DTYPE):
-                check_events(out, name=f"/{stream}", shape=(self.height, self.width))
-        except ValueError as exc:
-            raise ConfigError(f"corrupt event data: {exc}", source=str(self.path)) from None
+        if out.dtype in (BRIGHTNESS_DTYPE, GRADIENT_DTYPE):  # a file is untrusted: compiled kernels index with these
+            shape = (self.height, self.width)  # (its own errors name a missing attribute)
+            try:
+                check_events(out, name=f"/{stream}", shape=shape)
+            except ValueError as exc:
+                raise ConfigError(f"corrupt event data: {exc}", source=str(self.path)) from None
         return out
 
     def frames(self, name: str) -> tuple[np.ndarray, np.ndarray]:
