@@ -268,6 +268,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
         counts=counts, rates_hz={k: v / setup.duration_s for k, v in counts.items()},
         render_s=render_s, pixel_s=pixel_s, event_s=event_s, render_noise=setup.render_quality,
         pixel_steps_per_s=pixel_steps / max(pixel_s, 1e-12), total_s=time.perf_counter() - start,
+        readout=readout,
     )
 
 

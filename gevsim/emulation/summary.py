@@ -52,6 +52,8 @@ class RunSummary(_Fields):
     event_s : seconds spent in each emulator, by its name.
     render_noise : achieved render noise (:func:`gevsim.render.basis.summarize_quality`).
     pixel_steps_per_s : pixel-model throughput.
+    readout : each stream's readout counts (:meth:`gevsim.events.readout.Readout.summary`), as in the
+        file's ``readout_json`` attribute.
     """
 
     out: str
@@ -68,6 +70,7 @@ class RunSummary(_Fields):
     render_noise: dict[str, Any]
     pixel_steps_per_s: float
     total_s: float
+    readout: dict[str, dict[str, Any]]
 
 
 @dataclasses.dataclass(frozen=True)

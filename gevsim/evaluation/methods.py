@@ -25,6 +25,7 @@ from gevsim.emulation.emulators import EMULATORS
 from gevsim.emulation.frames import file_log_mode, linear_intensity
 from gevsim.errors import ConfigError, suggest
 from gevsim.events import decode
+from gevsim.events.gradient import check_ternary_state
 from gevsim.io import EventReader
 from gevsim.reconstruct import brightness
 from gevsim.reconstruct.gradient import GradientReconstructor
@@ -75,15 +76,15 @@ def _decoding_inputs(r: EventReader, emulator: str, shape: tuple[int, ...]) -> t
     """The stored thresholds and initial ternary state of a gradient stream, checked (a file is untrusted:
     the decoder indexes its tables with these values): ConfigError naming the file otherwise."""
     theta = np.asarray(r.array(layout.thresholds_key(emulator)), dtype=np.float64)
-    raw = np.asarray(r.array(layout.initial_state_key(emulator)))
     want = (2,) + tuple(shape)
     if theta.shape != want or not np.all(np.isfinite(theta)) or not np.all(theta > 0):
         raise ConfigError(f"corrupt {layout.thresholds_key(emulator)}: expected {want} finite positive thresholds",
                           source=str(r.path))
-    if raw.shape != want or not np.issubdtype(raw.dtype, np.integer) or raw.min() < -1 or raw.max() > 1:
-        raise ConfigError(f"corrupt {layout.initial_state_key(emulator)}: expected a {want} ternary state "
-                          "(-1, 0, 1)", source=str(r.path))
-    return theta, raw.astype(np.int8)
+    try:
+        state = check_ternary_state(r.array(layout.initial_state_key(emulator)), shape=(shape[0], shape[1]))
+    except ValueError as exc:
+        raise ConfigError(f"corrupt {layout.initial_state_key(emulator)}: {exc}", source=str(r.path)) from None
+    return theta, state
 
 
 def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:

@@ -4,10 +4,11 @@ Prophesee's ESP documentation: the filter "detects and cancels flicker events in
 regions", for flicker periods of 2 to 20 ms (50 to 500 Hz). The detector's internals are not published;
 this module implements that behaviour with stated, assumed rules:
 
-- each block of ``block_px`` x ``block_px`` pixels notes its *rises*: an ON event after an OFF event in
-  the block (a lamp's brightening edge);
-- the interval between successive rises is a period candidate when it lies in [1 / max_hz, 1 / min_hz];
-  ``cycles`` successive candidates within ``tolerance`` (relative) of each other mark the block flickering;
+- each block of :data:`BLOCK_PX` x :data:`BLOCK_PX` pixels notes its *rises*: an ON event after an OFF event
+  in the block (a lamp's brightening edge);
+- the interval between successive rises is a period candidate when it lies in [1 / ``anti_flicker_max_hz``,
+  1 / ``anti_flicker_min_hz``]; ``anti_flicker_cycles`` successive candidates within ``anti_flicker_tolerance``
+  (relative) of each other mark the block flickering (the readout's parameters, :class:`ReadoutParams`);
 - a flickering block's events are dropped until no rise comes for two periods; a rise outside the band or
   off the period ends the streak.
 
@@ -16,32 +17,13 @@ Events must come in time order; the block states carry across calls, so results 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numba import njit
 
-from gevsim._validate import real
+from gevsim.pixel.params import ReadoutParams
 
-
-@dataclass(frozen=True)
-class AntiFlickerParams:
-    """Parameters of :class:`AntiFlicker` (defaults: the ESP docs' band and block; cycles and tolerance assumed)."""
-
-    min_hz: float = 50.0
-    max_hz: float = 500.0
-    block_px: int = 4
-    cycles: int = 4
-    tolerance: float = 0.1
-
-    def __post_init__(self):
-        real(self.min_hz, "anti_flicker_min_hz", low=0, low_open=True)
-        real(self.max_hz, "anti_flicker_max_hz", low=self.min_hz, low_open=True)
-        if not isinstance(self.block_px, int) or self.block_px < 1:
-            raise ValueError(f"anti_flicker_block_px must be an integer >= 1, got {self.block_px!r}")
-        if not isinstance(self.cycles, int) or self.cycles < 1:
-            raise ValueError(f"anti_flicker_cycles must be an integer >= 1, got {self.cycles!r}")
-        real(self.tolerance, "anti_flicker_tolerance", low=0, low_open=True, high=1.0)
+#: Pixels per block side (Prophesee's ESP docs: "4x4 divided pixel regions").
+BLOCK_PX = 4
 
 
 @njit(cache=True)
@@ -70,11 +52,11 @@ def _filter(t, x, y, on, blocks_x, block, lo_us, hi_us, tol, cycles, last_pol, l
 class AntiFlicker:
     """Stateful anti-flicker filter over an (H, W) array (see the module docstring)."""
 
-    def __init__(self, shape: tuple[int, int], params: AntiFlickerParams):
+    def __init__(self, shape: tuple[int, int], params: ReadoutParams):
         self.params = params
         h, w = shape
-        self.blocks_x = -(-w // params.block_px)
-        n = self.blocks_x * -(-h // params.block_px)
+        self.blocks_x = -(-w // BLOCK_PX)
+        n = self.blocks_x * -(-h // BLOCK_PX)
         self.last_pol = np.full(n, -1, np.int8)
         self.last_rise = np.full(n, -np.inf)
         self.period = np.zeros(n)
@@ -89,6 +71,7 @@ class AntiFlicker:
         keep = np.empty(len(events), np.bool_)
         on = np.asarray(events["p"]).astype(np.int8) > 0
         self.dropped += int(_filter(events["t"], events["x"].astype(np.int64), events["y"].astype(np.int64), on,
-                                    self.blocks_x, p.block_px, 1e6 / p.max_hz, 1e6 / p.min_hz, p.tolerance, p.cycles,
-                                    self.last_pol, self.last_rise, self.period, self.streak, keep))
+                                    self.blocks_x, BLOCK_PX, 1e6 / p.anti_flicker_max_hz, 1e6 / p.anti_flicker_min_hz,
+                                    p.anti_flicker_tolerance, p.anti_flicker_cycles, self.last_pol, self.last_rise,
+                                    self.period, self.streak, keep))
         return events[keep]

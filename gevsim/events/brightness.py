@@ -85,7 +85,7 @@ class BrightnessEmulator:
         self.leak_light = light_hz_per_a.ravel() * self.threshold_on_ln if lit else np.zeros(0)
         n = self.threshold_on_ln.size
         phase = rng.random(n)  # drawn in either mode, so that the key below does not depend on it
-        leaks = (self.leak_ln_per_s > 0.0) | (params.leak_light_hz_per_a > 0 and light_leak)
+        leaks = (self.leak_ln_per_s > 0.0) | lit
         self.leak_phase = np.zeros(n) if cold_start else np.where(leaks, phase, 0.0)
         self.reset_key = np.uint64(rng.integers(0, 2**63, dtype=np.int64))
         self.ref = np.zeros(n)

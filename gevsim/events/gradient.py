@@ -67,15 +67,22 @@ def encode(t_prev: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     return EVENT_TABLE[np.asarray(t_prev, int) + 1, np.asarray(t_new, int) + 1]
 
 
+def check_ternary_state(state: ArrayLike, shape: tuple[int, int] | None = None) -> np.ndarray:
+    """A ternary state (2, H, W) of integers -1, 0, 1 (of ``shape`` (H, W) when given) as int8; ValueError
+    otherwise (the decoder indexes its event table with these values)."""
+    state = np.asarray(state)
+    if state.ndim != 3 or state.shape[0] != 2 or (shape is not None and state.shape[1:] != tuple(shape)):
+        want = "(2, H, W)" if shape is None else str((2,) + tuple(shape))
+        raise ValueError(f"initial state must have shape {want}, got {state.shape}")
+    if state.size and (not np.issubdtype(state.dtype, np.integer) or state.min() < -1 or state.max() > 1):
+        raise ValueError("initial state values must be -1, 0 or 1 (a ternary state)")
+    return state.astype(np.int8)
+
+
 def decode(events: np.ndarray, initial: np.ndarray, *, t_us: int | None = None) -> np.ndarray:
     """Ternary state (2, H, W) after applying ``events`` with timestamps <= ``t_us``
     (all when None) to the ``initial`` state (2, H, W)."""
-    initial = np.asarray(initial)
-    if initial.ndim != 3 or initial.shape[0] != 2:
-        raise ValueError(f"initial state must have shape (2, H, W), got {initial.shape}")
-    if initial.size and (not np.issubdtype(initial.dtype, np.integer) or initial.min() < -1 or initial.max() > 1):
-        raise ValueError("initial state values must be -1, 0 or 1 (ternary gradients)")
-    state = np.array(initial, dtype=np.int8, copy=True)
+    state = np.array(check_ternary_state(initial), dtype=np.int8, copy=True)
     check_events(events, name="events", shape=(state.shape[1], state.shape[2]))
     if not is_gradient(events):
         raise TypeError("decode needs gradient events (with an axis field)")

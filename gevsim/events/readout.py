@@ -184,11 +184,9 @@ class AntiFlickerStage:
     def __init__(self, params: ReadoutParams, *, key: int, shape: tuple[int, int] | None):
         if shape is None:
             raise ValueError("the anti-flicker filter needs the sensor's shape=(H, W)")
-        from gevsim.events.antiflicker import AntiFlicker, AntiFlickerParams
+        from gevsim.events.antiflicker import AntiFlicker
 
-        self.filter = AntiFlicker(shape, AntiFlickerParams(
-            min_hz=params.anti_flicker_min_hz, max_hz=params.anti_flicker_max_hz,
-            cycles=params.anti_flicker_cycles, tolerance=params.anti_flicker_tolerance))
+        self.filter = AntiFlicker(shape, params)
 
     def process(self, events: np.ndarray, horizon_us: float | None, first: int) -> tuple[np.ndarray, float | None]:
         return self.filter.process(events), horizon_us

@@ -144,7 +144,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
             else setup
         info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
         counts[name] = dict(info.counts)
-        saturated[name] = _bus_limited(folder / f"{name}.h5")
+        saturated[name] = bus_limited(info.readout)
         if name == "run":
             stats, summary = summarize(folder / "run.h5"), info
         if name in FOLDED:
@@ -196,14 +196,11 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
 BUS_LIMITED_SHARE = 0.01
 
 
-def _bus_limited(path: Path) -> list[str]:
-    """The streams of an emulation file whose readout limited their counts (:data:`BUS_LIMITED_SHARE`)."""
-    from gevsim.io import EventReader
-
-    with EventReader(path) as r:
-        readout = json.loads(str(r.attrs.get("readout_json", "{}")))
+def bus_limited(readout: dict[str, dict]) -> list[str]:
+    """The streams whose readout (a run's :attr:`~gevsim.emulation.summary.RunSummary.readout` counts) limited
+    their counts (:data:`BUS_LIMITED_SHARE`)."""
     return sorted(stream for stream, c in readout.items()
-                  if c["dropped"] + c["pending_at_end"] + c.get("rate_controller_dropped", 0)
+                  if c["dropped"] + c["pending_at_end"] + c["rate_controller_dropped"]
                   > BUS_LIMITED_SHARE * c["requested"])
 
 

@@ -176,8 +176,3 @@ def lux_to_photocurrent_a(lux: float, *, pixel_pitch_m: float, fill_factor: floa
     sd = lamp_spectrum(spectrum, source=source, key="sensor.bandwidth_reference_spectrum")
     return float(lux * pixel_pitch_m * pixel_pitch_m * fill_factor * responsivity_a_per_lm(sd, qe=qe))
 
-
-def chip_lux_per_a(preset: SensorPreset, spectrum: str = "D65") -> float:
-    """Focal-plane illuminance (lux) per ampere of one pixel's photocurrent, for a preset and a lamp spectrum."""
-    return 1.0 / lux_to_photocurrent_a(1.0, pixel_pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor,
-                                       spectrum=spectrum, qe=preset.qe)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from gevsim.events.antiflicker import AntiFlicker, AntiFlickerParams
+from gevsim.events.antiflicker import AntiFlicker
 from gevsim.events.readout import Readout
 from gevsim.events.types import BRIGHTNESS_DTYPE
 from gevsim.pixel.params import ReadoutParams
@@ -27,7 +27,7 @@ def _merge(*streams):
 
 
 def test_a_block_flickering_in_band_is_silenced_after_its_cycles():
-    params = AntiFlickerParams(cycles=4)
+    params = ReadoutParams(anti_flicker=True, anti_flicker_cycles=4)
     lamp = _flicker(1, 1, 100.0, 20)  # 100 Hz in block (0, 0)
     slow = _flicker(9, 9, 30.0, 6)  # 30 Hz: a 33 ms period, outside 2-20 ms
     out = AntiFlicker((16, 16), params).process(_merge(lamp, slow))
@@ -39,7 +39,7 @@ def test_a_block_flickering_in_band_is_silenced_after_its_cycles():
 
 
 def test_the_filter_lets_go_when_the_flicker_stops_and_ignores_aperiodic_blocks():
-    f = AntiFlicker((16, 16), AntiFlickerParams(cycles=3))
+    f = AntiFlicker((16, 16), ReadoutParams(anti_flicker=True, anti_flicker_cycles=3))
     lamp = _flicker(2, 2, 200.0, 30)  # 150 ms of 200 Hz
     after = _flicker(2, 2, 7.0, 3, t0_us=400_000)  # then slow changes (a scene, not a lamp)
     rng = np.random.default_rng(1)
@@ -55,8 +55,8 @@ def test_the_filter_lets_go_when_the_flicker_stops_and_ignores_aperiodic_blocks(
 def test_same_events_in_any_chunks_and_through_the_readout():
     ev = _merge(_flicker(1, 1, 100.0, 30, jitter_us=300, seed=2), _flicker(5, 1, 333.0, 60, seed=3),
                 _flicker(9, 5, 60.0, 12, seed=4))
-    whole = AntiFlicker((8, 12), AntiFlickerParams()).process(ev)
-    f = AntiFlicker((8, 12), AntiFlickerParams())
+    whole = AntiFlicker((8, 12), ReadoutParams(anti_flicker=True)).process(ev)
+    f = AntiFlicker((8, 12), ReadoutParams(anti_flicker=True))
     parts = [f.process(ev[a:b]) for a, b in ((0, 17), (17, 18), (18, len(ev)))]
     np.testing.assert_array_equal(np.concatenate(parts), whole)
     r = Readout(ReadoutParams(anti_flicker=True), shape=(8, 12))
