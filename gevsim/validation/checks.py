@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from gevsim.events import BrightnessEmulator
 from gevsim.events.brightness import per_pixel_thresholds
 from gevsim.events.readout import Readout
 from gevsim.events.types import BRIGHTNESS_DTYPE
@@ -170,25 +169,20 @@ def flicker_rates(preset: SensorPreset, s: Settings, *, phase: float, chip_lux: 
     """DVS events per pixel per second under a 100 Hz sinusoidal lamp (50 % modulation) over 0.2 s,
     the run starting at ``phase`` of the lamp period from a settled sensor."""
     from gevsim import _portable as pm
-    from gevsim.pixel import Photoreceptor
-    from gevsim.validation.measure import photocurrent_a, rate_interval
+    from gevsim.validation.measure import photocurrent_a, pixel_counts, rate_interval, running_sensor
 
     shape = s.shape
     step, period = 2e-5, 0.01
     n = int(round(0.2 / step))
     per = int(round(period / step))
     i0 = photocurrent_a(preset, chip_lux)
-    seeds = np.random.SeedSequence(5).spawn(2)
-    pr = Photoreceptor(shape, params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(seeds[0]))
-    dvs = BrightnessEmulator(shape, preset.events, rng=np.random.default_rng(seeds[1]),
-                             temperature_k=preset.photoreceptor.temperature_k)
+    pr, dvs = running_sensor(preset, shape, 5)
     mid = phase * period + step * (np.arange(n) + 0.5)
     cur = i0 * (1.0 + 0.5 * pm.sin(2.0 * math.pi * 100.0 * mid))
     pr.settle(np.broadcast_to(cur[:per, None, None], (per,) + shape), np.full(per, step))
     t = step * np.arange(1, n + 1)
     ev = dvs.process(pr.process(np.broadcast_to(cur[:, None, None], (n,) + shape), t), t)
-    counts = np.bincount(ev["y"].astype(np.int64) * shape[1] + ev["x"], minlength=shape[0] * shape[1])
-    return rate_interval(counts, n * step)
+    return rate_interval(pixel_counts(ev, shape), n * step)
 
 
 CHECKS = {"background activity": check_background, "bandwidth and latency": check_bandwidth,

@@ -61,6 +61,21 @@ def default_step_s(preset: SensorPreset, chip_lux: float) -> float:
     return min(2e-5, step) if step is not None else 2e-5
 
 
+def running_sensor(preset: SensorPreset, shape: tuple[int, int], seed: int) -> tuple[Photoreceptor, BrightnessEmulator]:
+    """The preset's photoreceptor and DVS over ``shape`` pixels, seeded from ``seed`` (settle the
+    photoreceptor before the first chunk: a sensor that has been running)."""
+    seeds = np.random.SeedSequence(seed).spawn(2)
+    pr = Photoreceptor(shape, params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(seeds[0]))
+    dvs = BrightnessEmulator(shape, preset.events, rng=np.random.default_rng(seeds[1]),
+                             temperature_k=preset.photoreceptor.temperature_k)
+    return pr, dvs
+
+
+def pixel_counts(events: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Events per pixel (flattened row-major)."""
+    return np.bincount(events["y"].astype(np.int64) * shape[1] + events["x"], minlength=shape[0] * shape[1])
+
+
 def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[int, int] = (32, 32),
                         duration_s: float = 10.0, seed: int = 0, step_s: float | None = None,
                         chunk_steps: int = 5000) -> tuple[Rate, Rate]:
@@ -68,10 +83,7 @@ def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[i
     been running (settled photoreceptor, stationary noise, random leak phases)."""
     step = default_step_s(preset, chip_lux) if step_s is None else float(step_s)
     n = int(math.ceil(duration_s / step))
-    seeds = np.random.SeedSequence(seed).spawn(2)
-    pr = Photoreceptor(shape, params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(seeds[0]))
-    dvs = BrightnessEmulator(shape, preset.events, rng=np.random.default_rng(seeds[1]),
-                             temperature_k=preset.photoreceptor.temperature_k)
+    pr, dvs = running_sensor(preset, shape, seed)
     level = np.full((1,) + shape, photocurrent_a(preset, chip_lux))
     pr.settle(level, np.array([step]))
     on = np.zeros(shape[0] * shape[1], np.int64)
@@ -79,9 +91,8 @@ def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[i
     for a in range(0, n, chunk_steps):
         t = step * np.arange(a + 1, min(a + chunk_steps, n) + 1)
         ev = dvs.process(pr.process(np.broadcast_to(level, (len(t),) + shape), t), t)
-        flat = ev["y"].astype(np.int64) * shape[1] + ev["x"]
-        on += np.bincount(flat[ev["p"]], minlength=on.size)
-        off += np.bincount(flat[~ev["p"]], minlength=off.size)
+        on += pixel_counts(ev[ev["p"]], shape)
+        off += pixel_counts(ev[~ev["p"]], shape)
     span = n * step
     return rate_interval(on, span), rate_interval(off, span)
 
