@@ -1,0 +1,45 @@
+"""Command line: ``gevsim info``, ``scenes``, ``presets``, ``render``, ``emulate``, ``reconstruct``, ``export``,
+``study``, ``dataset``, ``validate``.
+
+The CLI parses arguments, sets up logging and progress bars and calls the
+library; one module per group of commands. Bad input (:class:`~gevsim.errors.ConfigError`)
+and a missing optional extra (:class:`~gevsim.errors.MissingExtraError`) print one line
+naming the file and key and exit with code 2; anything else is a bug and shows its traceback.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+from gevsim.cli._common import _progress
+from gevsim.cli.emulate import cmd_emulate
+from gevsim.cli.files import cmd_export, cmd_reconstruct
+from gevsim.cli.info import cmd_info, cmd_presets, cmd_scenes, cmd_validate
+from gevsim.cli.parser import build_parser
+from gevsim.cli.render import cmd_render
+from gevsim.cli.runs import cmd_dataset, cmd_study
+from gevsim.errors import GevsimError
+
+__all__ = ["build_parser", "main", "_progress", "cmd_dataset", "cmd_emulate", "cmd_export", "cmd_info",
+           "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_validate"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if args.verbose:  # gevsim's own debug messages, not those of every library it imports
+        logging.getLogger("gevsim").setLevel(logging.DEBUG)
+    try:
+        return globals()[f"cmd_{args.command}"](args)
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
+    except GevsimError as exc:  # bad input, or an optional extra (plot, dask, video) is missing
+        if args.verbose:
+            raise
+        print(f"gevsim: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("gevsim: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,7 @@
+"""``python -m gevsim.cli``."""
+
+import sys
+
+from gevsim.cli import main
+
+sys.exit(main())

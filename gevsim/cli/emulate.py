@@ -1,0 +1,104 @@
+"""``gevsim emulate``: events from a scene config or from frames."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from gevsim.cli._common import _emulator_names, _progress, _render_overrides
+from gevsim.errors import ConfigError
+
+
+def _override_emulation(config, args: argparse.Namespace):
+    """An emulation config with the command line's --width/--height/--duration/--emulators/--cold-start."""
+    import dataclasses
+
+    changes: dict = {}
+    if _render_overrides(args):
+        changes["render"] = {**config.render, **_render_overrides(args)}
+    if args.duration is not None:
+        changes["duration_s"] = args.duration
+    if (names := _emulator_names(args)) is not None:
+        changes["emulators"] = names
+    if getattr(args, "cold_start", False):
+        changes["cold_start"] = True
+    if not changes:
+        return config
+    config = dataclasses.replace(config, **changes)
+    return dataclasses.replace(config, text=config.to_toml())
+
+
+def cmd_emulate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    if sum(x is not None for x in (args.config, args.frames, args.evreal, args.video)) != 1:
+        raise ConfigError("give exactly one of CONFIG.toml, --frames DIR, --evreal DIR or --video FILE")
+    if Path(args.out).suffix not in (".h5", ".hdf5"):
+        raise ConfigError(f"--out must name an .h5 file, got {args.out!r}", key="--out")
+    if Path(args.out).is_dir():
+        raise ConfigError(f"{args.out} is a folder; name an .h5 file", key="--out")
+    if args.config is None:
+        return _emulate_frames(args)
+    if args.log is not None:
+        raise ConfigError("--log sets how frame mode takes the log of frames; a scene's pixel model has its own",
+                          key="--log")
+    from gevsim.emulation import load_config, run
+    from gevsim.emulation import summary as summary_mod
+
+    config = _override_emulation(load_config(args.config), args)
+    update, close = _progress("emulate", not args.quiet, unit="chunk")
+    render_update, render_close = _progress("render", not args.quiet)
+    stats = {}
+    try:  # the statistics are read back before the file replaces an earlier one: a failure there keeps it
+        summary = run(config, args.out, cache_dir=args.cache, flicker=not args.no_flicker, noise=not args.no_noise,
+                      progress=update, render_progress=render_update,
+                      before_commit=lambda tmp: stats.update(summary_mod.summarize(tmp)))
+    finally:
+        render_close()
+        close()
+    print(f"gevsim: {summary.width}x{summary.height}, {summary.steps} steps of "
+          f"{config.step_s * 1e6:g} us ({summary.duration_s * 1e3:g} ms), {summary.frames} ground-truth frames;"
+          f" pixel model {summary.pixel_steps_per_s / 1e6:.1f} M pixel-steps/s", file=sys.stderr)
+    print(f"{'stream':20s} {'events':>10s} {'events/s':>11s} {'per pixel/s':>11s} {'p/frame':>8s} "
+          f"{'emulator s':>10s}")
+    for (name, count), seconds in zip(summary.counts.items(), summary.event_s.values()):
+        st = stats[name]
+        print(f"{name:20s} {count:10d} {st.rates_hz['total']:11.4g} {st.rates_hz['per_pixel_hz']:11.4g} "
+              f"{st.event_probability:8.3f} {seconds:10.2f}")
+    print(f"gevsim: wrote {args.out} in {summary.total_s:.1f} s", file=sys.stderr)
+    return 0
+
+
+def _emulate_frames(args: argparse.Namespace) -> int:
+    from gevsim.emulation import run_frames
+    from gevsim.io import frames as loaders
+
+    if args.evreal is not None:
+        frames, t_s = loaders.load_evreal_frames(args.evreal)
+        source = args.evreal
+    elif args.video is not None:
+        frames, t_s = loaders.load_video(args.video, fps=args.fps)
+        source = args.video
+    else:
+        frames, t_s = loaders.load_frame_folder(args.frames, fps=args.fps)
+        source = args.frames
+    from gevsim.emulation.emulators import FRAME_EMULATORS
+
+    given = [flag for flag, value in (("--width", args.width), ("--height", args.height),
+                                      ("--duration", args.duration)) if value is not None]
+    if given:
+        raise ConfigError(f"frame mode takes its size and times from the frames; drop {', '.join(given)}",
+                          key=given[0])
+    names = _emulator_names(args, FRAME_EMULATORS)
+    if args.seed is not None and args.threshold_mismatch is None:
+        raise ConfigError("--seed draws the DVS threshold mismatch: give --threshold-mismatch LN as well",
+                          key="--seed")
+    summary = run_frames(frames, t_s, args.out, seed=args.seed or 0, source=source,
+                         emulators=names or FRAME_EMULATORS, threshold_mismatch_ln=args.threshold_mismatch or 0.0,
+                         log_mode=args.log or "offset")
+    print(f"{'stream':22s} {'events':>10s} {'events/s':>12s}")
+    for name, count in summary["counts"].items():
+        print(f"{name:22s} {count:10d} {count / summary['duration_s']:12.4g}")
+    print(f"gevsim: {summary['frames']} frames {summary['width']}x{summary['height']} from {source}; "
+          f"wrote {args.out}", file=sys.stderr)
+    return 0

@@ -1,0 +1,136 @@
+"""The argument parser of every command (``main`` dispatches on ``args.command``)."""
+
+from __future__ import annotations
+
+import argparse
+
+from gevsim.cli._common import (
+    _executor_options,
+    _non_negative,
+    _non_negative_int,
+    _positive,
+    _positive_int,
+    _run_overrides,
+)
+
+DESCRIPTION = "Command line of gevsim, a physically based event-camera emulator."
+
+
+def build_parser() -> argparse.ArgumentParser:
+    import gevsim
+
+    parser = argparse.ArgumentParser(prog="gevsim", description=DESCRIPTION)
+    parser.add_argument("--version", action="version", version=f"gevsim {gevsim.__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log gevsim's debug messages")
+    sub = parser.add_subparsers(dest="command", required=True)
+    # -v after the subcommand as well (``gevsim emulate cfg.toml -v``); not given there: the top level's value.
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                        help="log gevsim's debug messages")
+    _add_parser = sub.add_parser
+
+    def add_parser(*a, **kw):
+        return _add_parser(*a, parents=[common], **kw)
+
+    sub.add_parser = add_parser  # type: ignore[method-assign]
+
+    sub.add_parser("info", help="versions, Mitsuba variant and why, libLLVM, threads")
+    sub.add_parser("scenes", help="list the built-in scenes")
+    sub.add_parser("presets", help="list the sensor presets and their main parameters")
+
+    r = sub.add_parser("render", help="render a scene's light-group basis images (and an irradiance sequence)")
+    r.add_argument("scene", help="a built-in scene name (see `gevsim scenes`) or a manifest .toml")
+    r.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    r.add_argument("--frames", type=_positive, metavar="RATE", help="also write the mixed irradiance at RATE frames/s")
+    r.add_argument("--exposure", type=_positive, metavar="S",
+                   help="average each frame over S seconds (default: instant)")
+    r.add_argument("--plots", action="store_true", help="write contact_sheet.png and waveform.png (needs --frames)")
+    r.add_argument("--cache", metavar="DIR", help="basis image cache (default $GEVSIM_CACHE or ~/.cache/gevsim)")
+    r.add_argument("--width", type=int)
+    r.add_argument("--height", type=int)
+    r.add_argument("--spp", type=int, help="a fixed sample count (draft mode; replaces the scene's noise target)")
+    r.add_argument("--noise-target", type=float, metavar="LN", dest="noise_target",
+                   help="render until this standard error of ln radiance (at the scene's percentile) is reached")
+    r.add_argument("--max-spp", type=int, dest="max_spp", help="noise-target mode: stop at this many samples")
+    r.add_argument("--time-budget", type=float, metavar="S", dest="time_budget",
+                   help="noise-target mode: stop after about S seconds of rendering")
+    r.add_argument("--denoise", action=argparse.BooleanOptionalAction, default=None,
+                   help="denoise the group images with Intel Open Image Denoise (biased; see benchmarks/README.md)")
+    r.add_argument("--seed", type=_non_negative_int)
+    r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    e = sub.add_parser("emulate", help="emulate events: a scene (CONFIG.toml) or a frame sequence")
+    e.add_argument("config", nargs="?", help="emulation config (keys: docs/config.md)")
+    e.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    e.add_argument("--frames", metavar="DIR", help="frame mode: a folder of images (+ timestamps.txt or --fps)")
+    e.add_argument("--evreal", metavar="DIR", help="frame mode: an EVREAL sequence folder")
+    e.add_argument("--video", metavar="FILE", help="frame mode: a video file (needs imageio)")
+    e.add_argument("--fps", type=_positive, help="frame rate when the frames carry no timestamps")
+    e.add_argument("--seed", type=_non_negative_int, help="frame mode: seed of the DVS threshold mismatch")
+    e.add_argument("--threshold-mismatch", type=_non_negative, metavar="LN", dest="threshold_mismatch",
+                   help="frame mode: sigma of the DVS threshold mismatch (ln units; default 0)")
+    e.add_argument("--log", choices=("offset", "linlog"),
+                   help="frame mode: the DVS sees ln(f + 1/255) (offset, default) or ln(f) above 20/255 and "
+                        "its tangent below (linlog, as v2e's lin-log)")
+    _run_overrides(e)
+    e.add_argument("--no-flicker", action="store_true", help="replace every lamp waveform by its mean")
+    e.add_argument("--no-noise", action="store_true", help="ideal pixel: no noise, no mismatch, no leak")
+    e.add_argument("--cold-start", action="store_true", dest="cold_start",
+                   help="start as if just switched on (default: a sensor that has been running)")
+    e.add_argument("--cache", metavar="DIR", help="basis image cache")
+    e.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+
+    c = sub.add_parser("reconstruct", help="reconstruct frames from an emulation file and score them")
+    c.add_argument("file", help="an HDF5 file written by `gevsim emulate`")
+    c.add_argument("--method", action="append", required=True,
+                   help="reconstruction methods by full name, as listed in gevsim.evaluation.METHODS: gradient "
+                        "events dct, sor and dct_rc, sor_rc (resolution-compressed stream); brightness events "
+                        "direct, high_pass, complementary; repeat or comma-separate")
+    c.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    c.add_argument("--mean", default="ground-truth", help="level: ground-truth (papers' protocol) or photodiode")
+    c.add_argument("--c", type=_positive, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")
+    c.add_argument("--contrast", type=_positive, help="contrast step of a brightness event (ln units; default: "
+                                                   "the sensor's DVS thresholds stored in the file)")
+    c.add_argument("--reference", default="flicker",
+                   help="ground truth: flicker (as lit at each instant) or no-flicker (lamps at their mean)")
+    c.add_argument("--bits-per-event", type=_non_negative, default=32.0, help="for the bandwidth column (default 32)")
+    c.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    x = sub.add_parser("export", help="write an emulation file's events in another format (AEDAT4 for DV tools)")
+    x.add_argument("file", help="an emulation file (.h5)")
+    x.add_argument("--format", choices=("aedat4",), required=True,
+                   help="aedat4: iniVation DV (gradient axes as <stream>_x/_y event streams)")
+    x.add_argument("--out", required=True, help="output file (written atomically)")
+    x.add_argument("--stream", action="append", metavar="NAME", help="streams to export (default: all)")
+
+    d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
+    d.add_argument("config", help="dataset config (keys: docs/config.md)")
+    d.add_argument("--out", required=True, help="output folder; finished sequences in it are kept")
+    _executor_options(d)
+    _run_overrides(d)
+    d.add_argument("--cache", metavar="DIR", help="basis image cache (shared by the workers)")
+    d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    v = sub.add_parser("validate", help="check sensor presets against published measurements (background activity, "
+                       "bandwidth, latency, mismatch, readout) and against themselves (halved step, shifted start); "
+                       "writes a report with plots and a pass/fail table")
+    v.add_argument("--sensor", action="append", help="a preset name or TOML file (repeatable; default: every shipped "
+                   "preset but 'ideal')")
+    v.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    v.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    v.add_argument("--quick", action="store_true",
+                   help="smaller, shorter runs (16x16 px, 3 s per point): wider intervals")
+
+    s = sub.add_parser("study", help="run (or resume) a study: sweeps with repeats and counterfactuals, intervals, "
+                                     "plots and a report")
+    s.add_argument("config", help="a study config (experiments/*.toml; keys: docs/config.md)")
+    s.add_argument("--out", required=True, help="study folder (runs/ inside makes reruns resume)")
+    s.add_argument("--repeats", type=_positive_int, metavar="R",
+                   help="noise seeds per run (default: [study] repeats); more repeats reuse the finished ones")
+    _executor_options(s)
+    _run_overrides(s)
+    s.add_argument("--cache", metavar="DIR", help="basis image cache (default with workers: OUT/render-cache)")
+    s.add_argument("--keep-files", action="store_true", help="keep every run's HDF5 files")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    return parser

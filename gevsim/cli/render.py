@@ -1,0 +1,52 @@
+"""``gevsim render``: a scene's light-group basis (and an irradiance sequence)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from gevsim.cli._common import _progress
+from gevsim.errors import ConfigError
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from gevsim.render import MitsubaScene, load, override, render_basis
+    from gevsim.render.output import write_render
+
+    manifest = load(args.scene)
+    manifest = override(manifest, width=args.width, height=args.height, spp=args.spp, seed=args.seed,
+                        noise_target_ln=args.noise_target, max_spp=args.max_spp, time_budget_s=args.time_budget,
+                        denoise=args.denoise, duration_s=args.duration, source="command line")
+    if args.plots and args.frames is None:
+        raise ConfigError("--plots needs --frames RATE (the plots show the mixed sequence)", key="--plots")
+    if args.plots:
+        from gevsim.plots import _pyplot
+
+        _pyplot()
+    start = time.perf_counter()
+    scene = MitsubaScene(manifest)
+    r = manifest.render
+    quality = (f"noise target {r.noise_target_ln} ln at p{r.noise_percentile:g} (max {r.max_spp} spp)" if r.targeted
+               else f"{r.spp} spp")
+    print(f"gevsim: scene {manifest.name}, {r.width}x{r.height}, {quality}, {r.sampler} sampler, "
+          f"variant {scene.variant.variant} ({scene.variant.reason}), "
+          f"{'one pass for all light groups' if scene.one_pass else 'one render per light group'}", file=sys.stderr)
+    update, close = _progress(f"render {manifest.name}", not args.quiet)
+    try:
+        basis = render_basis(scene, cache_dir=args.cache, progress=update)
+    finally:
+        close()
+    rendered = int((basis.render_s > 0).sum())
+    info = write_render(args.out, manifest, basis, variant=scene.variant, frame_rate_hz=args.frames,
+                        exposure_s=args.exposure, plots=args.plots)
+    per = basis.render_s[basis.render_s > 0]
+    timing = f", {per.mean():.2f} s per pose" if per.size else ""
+    q = basis.noise_summary()
+    print(f"gevsim: {len(basis.times_s)} poses x {len(basis.groups)} light groups, {rendered} poses rendered, "
+          f"{basis.render_s.size - rendered} from cache{timing}; {q['spp_min']}-{q['spp_max']} spp, "
+          f"p{q['percentile']:g} ln error {q['se_ln']['at_percentile']:.4g}"
+          f"{'' if q['reached'] else ' (target NOT reached: ' + ', '.join(q['stopped_by']) + ')'}; "
+          f"{len(info.get('frames', {}).get('t_s', []))} frames; wrote {args.out} "
+          f"in {time.perf_counter() - start:.1f} s", file=sys.stderr)
+    return 0

@@ -1,0 +1,80 @@
+"""``gevsim study`` and ``gevsim dataset``: many runs through an executor, resumable."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from gevsim.cli._common import _emulator_names, _progress, _quiet_dask, _render_overrides
+from gevsim.errors import ConfigError
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from gevsim.experiments.executors import make_executor
+    from gevsim.experiments.report import comparison_table, write_study_outputs
+    from gevsim.experiments.study import check_study_scenes, load_study
+    from gevsim.experiments.study_run import run_study
+    from gevsim.io import exclusive
+
+    study = load_study(args.config)
+    base = dict(study.base)
+    if args.repeats is not None:
+        base["repeats"] = args.repeats
+    if _render_overrides(args):
+        base["render"] = {**base["render"], **_render_overrides(args)}
+    if args.duration is not None:
+        base["duration_s"] = args.duration
+    if (names := _emulator_names(args)) is not None:
+        from gevsim.evaluation.methods import METHODS
+
+        missing = sorted({METHODS[m].emulator for m in base["methods"]} - set(names))
+        if missing:
+            raise ConfigError(f"the study's methods need the emulators {', '.join(missing)}", key="--emulators")
+        base["emulators"] = list(names)
+    study = dataclasses.replace(study, base=base)
+    check_study_scenes(study)
+    _quiet_dask(args)
+    with exclusive(args.out, what="study"):  # a second study on this folder is refused before any work
+        with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
+            update, close = _progress(f"study {study.name}", not args.quiet, unit="job")
+            try:
+                rows = run_study(study, args.out, cache_dir=args.cache, executor=executor, progress=update,
+                                 keep_files=args.keep_files)
+            finally:
+                close()
+        report = write_study_outputs(args.out, study, rows)
+    print(comparison_table(rows, study))
+    print(f"gevsim: {len(rows)} runs x {study.base['repeats']} repeats; report {report}", file=sys.stderr)
+    return 0
+
+
+def cmd_dataset(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from gevsim.experiments.dataset import generate, load_dataset_config
+    from gevsim.experiments.executors import make_executor
+    from gevsim.io import exclusive
+
+    config = load_dataset_config(args.config)
+    changes: dict = {}
+    if _render_overrides(args):
+        changes["render"] = {**config.render, **_render_overrides(args)}
+    if args.duration is not None:
+        changes["time"] = dataclasses.replace(config.time, duration_s=args.duration)
+    if (names := _emulator_names(args)) is not None:
+        changes["emulators"] = names
+    config = dataclasses.replace(config, **changes)
+    _quiet_dask(args)
+    with exclusive(args.out, what="dataset"), \
+            make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
+        update, close = _progress("dataset", not args.quiet, unit="seq")
+        try:
+            summary = generate(config, args.out, executor=executor, cache_dir=args.cache, progress=update)
+        finally:
+            close()
+    print(f"gevsim: {summary['sequences']} sequences: {summary['done']} made, {summary['skipped']} already done; "
+          f"{summary['events']} events ({', '.join(f'{k} {v}' for k, v in summary['counts'].items())}); "
+          f"wrote {args.out} in {summary['seconds']:.1f} s", file=sys.stderr)
+    return 0
