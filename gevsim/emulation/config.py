@@ -99,7 +99,7 @@ class EmulationConfig:
             em["duration_s"] = self.duration_s
         groups = {g: {"scale": self.group_scale.get(g, 1.0), **({"waveform": self.group_waveform[g]}
                                                                  if g in self.group_waveform else {})}
-                  for g in set(self.group_scale) | set(self.group_waveform)}
+                  for g in sorted(set(self.group_scale) | set(self.group_waveform))}  # not set order (#18)
         return tomli_w.dumps({
             "emulation": em, "render": dict(self.render),
             "gradient": {"thresholds_ln": list(self.thresholds_ln), "hysteresis_ln": self.hysteresis_ln},

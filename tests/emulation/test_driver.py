@@ -1,6 +1,7 @@
 """The emulation driver end to end on tiny scenes: outputs, chunking, seeds, counterfactuals."""
 
 import dataclasses
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -191,6 +192,16 @@ def test_programmatic_config_round_trips_through_toml(tmp_path):
     for field in ("scene", "sensor", "seed", "step_s", "light_scale", "group_scale", "group_waveform",
                   "thresholds_ln", "emulators"):
         assert getattr(back, field) == getattr(cfg, field), field
+
+
+def test_to_toml_orders_light_groups_by_name_not_by_set_order(tmp_path):
+    """Issue 24 #18: shard metadata (config_toml) must not follow PYTHONHASHSEED."""
+    names = ["zeta", "b", "lamp", "a9", "m", "q", "c", "x"]  # 8! orders: set order is sorted by chance 1 in 40320
+    cfg = dataclasses.replace(load_config(config(tmp_path)), group_scale={n: 0.5 for n in names[:5]},
+                              group_waveform={n: {"type": "dc"} for n in reversed(names[3:])})
+    text = cfg.to_toml()
+    assert list(tomllib.loads(text)["light"]["groups"]) == sorted(names)
+    assert dataclasses.replace(cfg, group_scale=dict(reversed(cfg.group_scale.items()))).to_toml() == text
 
 
 def test_pose_blend_of_the_photocurrent_basis():
