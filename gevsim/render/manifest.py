@@ -150,6 +150,9 @@ def _read_toml(path: Path, chain: tuple[Path, ...] = (), files: list[Path] | Non
     merged = _read_toml(parent, chain + (parent,), files)
     for table, value in data.items():
         if isinstance(value, dict) and isinstance(merged.get(table), dict):
+            if table == "render" and ("spp" in value) != ("noise_target_ln" in value):
+                # The child's quality mode replaces the base's, as override() does (issue 24 #18).
+                merged[table].pop("noise_target_ln" if "spp" in value else "spp", None)
             merged[table] = {**merged[table], **value}
         else:
             merged[table] = value

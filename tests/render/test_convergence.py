@@ -189,6 +189,20 @@ def test_spp_override_switches_to_the_fixed_mode():
     assert not m.render.targeted and m.render.spp == 8 and "noise_target_ln" not in m.raw["render"]
 
 
+def test_extends_switches_the_quality_mode_like_an_override(tmp_path):
+    """Issue 24 #18: a manifest that extends a noise-target scene with ``spp`` renders that fixed spp."""
+    office = load("office")
+    assert office.render.targeted
+    child = tmp_path / "draft.toml"
+    child.write_text(f'[scene]\nextends = "{office.source}"\n[render]\nspp = 8\n')
+    m = load(child)
+    assert not m.render.targeted and m.render.spp == 8 and m.builder == office.builder
+    back = tmp_path / "back.toml"
+    back.write_text('[scene]\nextends = "draft.toml"\n[render]\nnoise_target_ln = 0.01\n')
+    m = load(back)
+    assert m.render.targeted and m.render.noise_target_ln == 0.01 and "spp" not in m.raw["render"]
+
+
 def test_a_render_stopped_by_its_time_budget_serves_the_same_budget_again():
     mix = mixture_weights([(0.0, 2.0), (1.0, 1.0)])
     request = quality_request(override(load("office"), noise_target_ln=0.001, time_budget_s=30.0).render, mix, 0.001)
