@@ -68,14 +68,58 @@ class FromTable:
         return cls.from_table({k: v for k, v in table.items() if k in names}, source=source, where=where, base=base)
 
 
+#: The deepest nesting of tables and arrays a config may have (gevsim's own go 4 deep, as in
+#: ``light.groups.NAME.waveform``); deeper ones are refused before anything recurses into them.
+MAX_NESTING = 32
+#: The largest config file read (gevsim's own are a few kB).
+MAX_TOML_BYTES = 16 << 20
+
+
 def read_toml(path: Path, *, what: str) -> dict:
-    """Parse a TOML file; a missing or malformed file is a :class:`ConfigError`."""
+    """Parse a TOML file; a missing, unreadable, non-UTF-8, malformed or too deeply nested file is a
+    :class:`ConfigError`."""
     try:
-        return tomllib.loads(Path(path).read_text())
+        text = _read_text(Path(path), what)
     except FileNotFoundError:
         raise ConfigError(f"no such {what}", source=str(path)) from None
+    except IsADirectoryError:
+        raise ConfigError(f"is a folder, not a file (expected the {what})", source=str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not UTF-8 text: byte {exc.start} is 0x{exc.object[exc.start]:02x} (expected the {what} "
+                          "in TOML)", source=str(path)) from None
+    except OSError as exc:  # permissions, a device, an I/O error
+        raise ConfigError(f"cannot read the {what}: {exc.strerror or exc}", source=str(path)) from None
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"malformed TOML: {exc}", source=str(path)) from None
+    except RecursionError:
+        raise ConfigError(f"malformed TOML: nested more than {MAX_NESTING} levels deep", source=str(path)) from None
+    _check_nesting(data, source=str(path))
+    return data
+
+
+def _read_text(path: Path, what: str) -> str:
+    """The file's text; a FIFO or device (which could block or never end) and a file over
+    :data:`MAX_TOML_BYTES` are refused before they are read."""
+    if path.exists() and not path.is_dir() and not path.is_file():
+        raise ConfigError(f"not a regular file (expected the {what})", source=str(path))
+    with open(path, "rb") as f:
+        data = f.read(MAX_TOML_BYTES + 1)
+    if len(data) > MAX_TOML_BYTES:
+        raise ConfigError(f"larger than {MAX_TOML_BYTES >> 20} MiB (expected the {what})", source=str(path))
+    return data.decode("utf-8")
+
+
+def _check_nesting(data: dict, *, source: str) -> None:
+    """Refuse tables and arrays nested deeper than :data:`MAX_NESTING` (walked without recursion)."""
+    stack: list[tuple[Any, int]] = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if depth > MAX_NESTING:
+            raise ConfigError(f"malformed TOML: nested more than {MAX_NESTING} levels deep", source=source)
+        children = value.values() if isinstance(value, dict) else value
+        stack.extend((v, depth + 1) for v in children if isinstance(v, (dict, list)))
 
 
 class TomlReader:

@@ -41,13 +41,13 @@ class TimeGrid(FromTable):
     frame_rate_hz: float = 1000.0
 
     def __post_init__(self) -> None:
-        if self.duration_s is not None:
-            object.__setattr__(self, "duration_s", real(self.duration_s, "duration_s", low=0.0, low_open=True))
-            _check_duration(self.duration_s)
-            self._check_frames(self.duration_s)
         object.__setattr__(self, "step_s", real(self.step_s, "step_s", low=0.0, low_open=True))
         object.__setattr__(self, "chunk_steps", integer(self.chunk_steps, "chunk_steps", low=1))
         object.__setattr__(self, "frame_rate_hz", real(self.frame_rate_hz, "frame_rate_hz", low=0.0))
+        if self.duration_s is not None:  # after frame_rate_hz is known finite: the frame count needs it
+            object.__setattr__(self, "duration_s", real(self.duration_s, "duration_s", low=0.0, low_open=True))
+            _check_duration(self.duration_s)
+            self._check_frames(self.duration_s)
         if self.duration_s is not None and self.step_s >= self.duration_s:
             raise FieldError("step_s", f"step_s = {self.step_s} must be shorter than duration_s = {self.duration_s}")
 
@@ -65,7 +65,10 @@ class TimeGrid(FromTable):
         return int(round(steps))
 
     def _check_frames(self, duration_s: float) -> None:
-        frames = math.floor(duration_s * self.frame_rate_hz + 1e-9) + 1 if self.frame_rate_hz > 0 else 0
+        frames: float = 0
+        if self.frame_rate_hz > 0:
+            product = duration_s * self.frame_rate_hz  # inf when both are huge: more than any limit
+            frames = math.floor(product + 1e-9) + 1 if math.isfinite(product) else math.inf
         if frames > MAX_FRAMES:
             raise FieldError("frame_rate_hz", f"frame_rate_hz = {self.frame_rate_hz:g} over {duration_s:g} s makes "
                                               f"{frames:.4g} ground-truth frames; at most {MAX_FRAMES} are written "
