@@ -172,3 +172,16 @@ class TomlReader:
         if not isinstance(value, dict):
             self.fail(f"{where}{key}", f"expected a table, got {value!r}")
         return value
+
+    def list(self, data: dict, key: str, where: str = "", default: list | None = None, *,
+             of: type | tuple[type, ...] | None = None, item: str = "") -> list:
+        """``data[key]`` as a list (``default`` when absent), each item an ``of`` (described as ``item``)
+        where given: a string where a list belongs is refused as such, not read as its letters."""
+        value = data.get(key, [] if default is None else default)
+        if not isinstance(value, list):
+            self.fail(f"{where}{key}", f"expected a list{f', each item {item}' if item else ''}, got {value!r}")
+        if of is not None:
+            for i, x in enumerate(value):
+                if not isinstance(x, of) or isinstance(x, bool):
+                    self.fail(f"{where}{key}[{i}]", f"expected {item or of}, got {x!r}")
+        return value

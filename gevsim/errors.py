@@ -46,3 +46,15 @@ def check_keys(table: dict, allowed: Iterable[str], *, source: str | None, where
                 source=source,
                 key=f"{where}.{key}" if where else key,
             )
+
+
+def one_line(message: object, *, last: bool = False) -> str:
+    """Another library's (multi-line) message as one line: its first line and how many more there
+    were; with ``last``, also its last line (a nested error's innermost cause, as in Mitsuba's include chain)."""
+    lines = [line.strip() for line in str(message).splitlines() if line.strip()]
+    if len(lines) <= 1:
+        return lines[0] if lines else ""
+    if not last:
+        return f"{lines[0]} [{len(lines) - 1} more lines]"
+    between = f" [{len(lines) - 2} more lines]" if len(lines) > 2 else ""
+    return f"{lines[0]} ...{between} {lines[-1]}"

@@ -13,7 +13,7 @@ import numpy as np
 
 from gevsim._portable import combine
 from gevsim._validate import FieldError, increasing, real
-from gevsim.errors import ConfigError, MissingExtraError
+from gevsim.errors import ConfigError, MissingExtraError, one_line
 from gevsim.io.evreal import import_evreal
 
 log = logging.getLogger(__name__)
@@ -66,21 +66,42 @@ def _check_times(t: np.ndarray, n: int, *, source: str) -> np.ndarray:
     if len(t) != n:
         raise ConfigError(f"{len(t)} timestamps for {n} frames", source=source)
     try:
-        return increasing(t, "timestamps", what="entry")
+        return _in_range(increasing(t, "timestamps", what="entry"), source=source)
     except FieldError as err:
         raise ConfigError(str(err), source=source) from None
 
 
+#: The latest frame time: event files count whole microseconds in int64 (2^62 us leaves headroom).
+_LATEST_S = 2.0**62 / 1e6
+
+
+def _in_range(t: np.ndarray, *, source: str, key: str | None = None) -> np.ndarray:
+    """Frame times must be >= 0 and fit an event file's int64 microsecond clock."""
+    if len(t) and t[0] < 0:
+        raise ConfigError(f"times must be >= 0 s, got {t[0]!r}", source=source, key=key)
+    if len(t) and not t[-1] < _LATEST_S:
+        raise ConfigError(f"frame {len(t) - 1} is at {t[-1]:.4g} s, past the latest time an event file holds "
+                          f"({_LATEST_S:.4g} s)", source=source, key=key)
+    return t
+
+
 def _fps_times(fps, n: int, *, source: str) -> np.ndarray:
     try:
-        return np.arange(n) / real(fps, "fps", low=0.0, low_open=True)
+        return _in_range(np.arange(n) / real(fps, "fps", low=0.0, low_open=True), source=source, key="fps")
     except FieldError as err:
         raise ConfigError(str(err), source=source, key="fps") from None
 
 
 def _read_timestamps(path: Path) -> np.ndarray:
     values = []
-    for i, line in enumerate(path.read_text().splitlines(), start=1):
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not UTF-8 text: byte {exc.start} is 0x{exc.object[exc.start]:02x} (expected one time "
+                          "in seconds per line)", source=str(path)) from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read the timestamps: {exc.strerror or exc}", source=str(path)) from None
+    for i, line in enumerate(text.splitlines(), start=1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue
@@ -117,7 +138,7 @@ def load_frame_folder(folder: str | os.PathLike, *, fps: float | None = None) ->
         try:
             img = _imread(path)
         except Exception as exc:  # imageio raises plugin-specific errors
-            raise ConfigError(f"cannot read the image ({exc})", source=str(path)) from None
+            raise ConfigError(f"cannot read the image ({one_line(exc)})", source=str(path)) from None
         img = _to_gray(img, channels=img.ndim == 3, source=str(path))
         if img.ndim != 2:
             raise ConfigError(f"expected one 2-D image, got shape {img.shape}", source=str(path))
@@ -152,7 +173,7 @@ def load_video(path: str | os.PathLike, *, fps: float | None = None) -> tuple[np
         video = np.asarray(iio.imread(path, index=None))
         meta = iio.immeta(path) if fps is None else {}
     except Exception as exc:
-        raise ConfigError(f"cannot read the video ({exc}); MP4/AVI need imageio's pyav or ffmpeg plugin",
+        raise ConfigError(f"cannot read the video ({one_line(exc)}); MP4/AVI need imageio's pyav or ffmpeg plugin",
                           source=str(path)) from None
     if video.ndim == 2:  # a single still image
         video = video[None]

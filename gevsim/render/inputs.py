@@ -44,6 +44,7 @@ from typing import Any
 
 from gevsim.errors import ConfigError
 from gevsim.render.manifest import SceneManifest
+from gevsim.render.manifest_checks import call_build
 from gevsim.render.xml_scene import is_xml, load_xml_objects, xml_inputs
 
 _local = threading.local()
@@ -212,7 +213,7 @@ def build_shapes(manifest: SceneManifest) -> tuple[dict, tuple[Path, ...]]:
     before = set(sys.modules)
     with _recording() as opened:
         module = _import_builder(builder)
-        shapes = module.build(dict(manifest.options))
+        shapes = call_build(module.build, manifest, builder)
     if not isinstance(shapes, dict):
         raise ConfigError("build(options) must return a dict of Mitsuba objects", source=str(builder))
     found = {Path(p).resolve() for p in map(os.fsdecode, opened) if _is_input(os.path.realpath(p))}

@@ -21,6 +21,8 @@ from gevsim.config import TomlReader, read_toml, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.illumination import Waveform
 from gevsim.illumination import from_spec as waveform_from_spec
+from gevsim.io.ownership import check_name
+from gevsim.render.manifest_checks import check_up
 from gevsim.render.quality import RENDER_KEYS, RenderSettings, check_render_size, quality_settings, render_settings
 from gevsim.render.quality import check_render_overrides as check_render_overrides  # re-exported (it lived here)
 
@@ -141,9 +143,15 @@ def _read_toml(path: Path, chain: tuple[Path, ...] = (), files: list[Path] | Non
     data = read_toml(path, what="scene manifest")
     if files is not None:
         files.append(path.resolve())
-    base = data.get("scene", {}).get("extends")
+    scene = data.get("scene", {})
+    if not isinstance(scene, dict):
+        raise ConfigError(f"expected a table, got {scene!r}", source=str(path), key="scene")
+    base = scene.get("extends")
     if base is None:
         return data
+    if not isinstance(base, str):
+        raise ConfigError(f"expected the path of the manifest this one extends, got {base!r}", source=str(path),
+                          key="scene.extends")
     parent = (path.parent / base).resolve()
     if parent in chain:
         raise ConfigError(f"'extends' loops back to {parent}", source=str(path), key="scene.extends")
@@ -157,7 +165,7 @@ def _read_toml(path: Path, chain: tuple[Path, ...] = (), files: list[Path] | Non
         else:
             merged[table] = value
     # Relative paths in the base (builder) stay relative to the base file.
-    if "builder" not in data.get("scene", {}) and "builder" in merged.get("scene", {}):
+    if "builder" not in scene and isinstance(merged["scene"].get("builder"), str):
         merged["scene"]["builder"] = str((parent.parent / merged["scene"]["builder"]).resolve())
     merged["scene"].pop("extends", None)
     return merged
@@ -176,6 +184,9 @@ def load(scene: str | Path) -> SceneManifest:
     if "builder" not in sc:
         r.fail("scene.builder", "missing: name the Python file with the scene's build(options) function, or a "
                                 "Mitsuba XML scene file")
+    if not isinstance(sc["builder"], str):
+        r.fail("scene.builder", f"expected the path of a Python builder (.py) or a Mitsuba XML scene (.xml), got "
+                                f"{sc['builder']!r}")
     builder = (path.parent / sc["builder"]).resolve()
     if not builder.is_file():
         r.fail("scene.builder", f"no such file {builder}")
@@ -197,7 +208,7 @@ def load(scene: str | Path) -> SceneManifest:
     if fov_deg >= 180:
         r.fail("camera.fov_deg", f"must be < 180, got {fov_deg}")
     camera = []
-    for i, key in enumerate(cam.get("keyframes", [])):
+    for i, key in enumerate(r.list(cam, "keyframes", "camera.", of=dict, item="a table {t_s, origin, target}")):
         where = f"camera.keyframes[{i}]"
         check_keys(key, CAMERA_KEY_KEYS, source=r.source, where=where)
         camera.append(
@@ -214,9 +225,10 @@ def load(scene: str | Path) -> SceneManifest:
     for i, key in enumerate(camera):
         if np.allclose(key.origin, key.target):
             r.fail(f"camera.keyframes[{i}]", "origin and target coincide")
+        check_up(key.origin, key.target, key.up, r, f"camera.keyframes[{i}].up")
 
     motion = []
-    for i, mo in enumerate(raw.get("motion", [])):
+    for i, mo in enumerate(r.list(raw, "motion", of=dict, item="a [[motion]] table")):
         where = f"motion[{i}]"
         check_keys(mo, MOTION_KEYS, source=r.source, where=where)
         objects = mo.get("object")
@@ -224,7 +236,8 @@ def load(scene: str | Path) -> SceneManifest:
         if not isinstance(objects, list) or not objects or not all(isinstance(o, str) for o in objects):
             r.fail(f"{where}.object", f"expected the id (or a list of ids) of the moving shapes, got {objects!r}")
         keys = []
-        for j, key in enumerate(mo.get("keyframes", [])):
+        for j, key in enumerate(r.list(mo, "keyframes", f"{where}.", of=dict, item="a table {t_s, translate_m, "
+                                                                                  "rotate_deg}")):
             kw = f"{where}.keyframes[{j}]"
             check_keys(key, MOTION_KEY_KEYS, source=r.source, where=kw)
             keys.append(
@@ -280,6 +293,7 @@ def _check_times(times, r: TomlReader, where: str) -> None:
 
 
 def _light_group(name: str, spec: dict, r: TomlReader) -> LightGroup:
+    check_name(name, source=r.source, key="light_groups")  # a folder of the render's basis
     where = f"light_groups.{name}"
     if not isinstance(spec, dict):
         r.fail(where, f"expected a table, got {spec!r}")

@@ -19,7 +19,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
-from gevsim.errors import ConfigError
+from gevsim.errors import ConfigError, one_line
 
 __all__ = ["is_xml", "load_xml_objects", "xml_inputs"]
 
@@ -65,7 +65,8 @@ def load_xml_objects(mi: Any, path: Path, options: dict) -> dict:
     try:
         scene = mi.load_file(str(path), **{k: str(v) for k, v in options.items()})
     except Exception as exc:
-        raise ConfigError(f"Mitsuba could not load the XML scene: {exc}", source=str(path)) from None
+        raise ConfigError(f"Mitsuba could not load the XML scene: {one_line(exc, last=True)}",
+                          source=str(path)) from None
     objects: dict = {}
     for shape in scene.shapes():
         objects[shape.id()] = shape
