@@ -9,8 +9,12 @@ naming the file and key and exit with code 2; anything else is a bug and shows i
 
 from __future__ import annotations
 
+import errno
 import logging
+import os
+import re
 import sys
+from pathlib import Path
 
 from gevsim.cli._common import _progress
 from gevsim.cli.emulate import cmd_emulate
@@ -43,3 +47,29 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("gevsim: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:  # a full disk, a quota, a read-only file system: one line; other OSErrors are bugs
+        if exc.errno not in DISK_ERRORS or args.verbose:
+            raise
+        where = _failed_path(exc) or (f"{args.out}: " if getattr(args, "out", None) else "")
+        print(f"gevsim: error: {where}{os.strerror(exc.errno).lower()}", file=sys.stderr)
+        return 2
+
+
+#: errno values that mean "this disk cannot take the output" rather than a bug.
+DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
+
+
+def _failed_path(exc: OSError) -> str:
+    """``"<path>: "`` of the file a write failed on (the target rather than its temporary stage), or ``""``."""
+    name = exc.filename
+    if name is None:  # h5py puts the name into the message only: "filename = '...'"
+        found = re.search(r"filename = '([^']*)'", str(exc))
+        name = found.group(1) if found else None
+    if name is None:
+        return ""
+    parts = Path(os.fsdecode(name)).parts
+    for i, part in enumerate(parts):  # a stage ".<target>.gevsim-XXXXXXXX<suffix>" stands for its target
+        staged = re.fullmatch(r"\.(.+)\.gevsim-[A-Za-z0-9_]{8}.*", part)
+        if staged:
+            return f"{Path(*parts[:i], staged.group(1))}: "
+    return f"{Path(*parts)}: "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 
@@ -30,7 +31,22 @@ def _write(path, channels: dict, metadata: dict | None) -> None:
         header["gevsim"] = json.dumps(metadata, sort_keys=True)
     with atomic_path(path, suffix=".exr") as tmp:
         with OpenEXR.File(header, channels) as f:
-            f.write(str(tmp))
+            try:
+                f.write(str(tmp))
+            except RuntimeError as exc:  # OpenEXR reports a failed write (a full disk) as RuntimeError
+                error = _as_oserror(exc, path)
+                if error is None:
+                    raise
+                raise error from exc
+
+
+def _as_oserror(exc: RuntimeError, path) -> OSError | None:
+    """OpenEXR's "Failed to write ... No space left on device." as ``OSError(ENOSPC, ..., path)``,
+    so that callers handle a full disk alike for every format; None for any other error."""
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO, errno.EFBIG):
+        if os.strerror(code) in str(exc):
+            return OSError(code, os.strerror(code), str(path))
+    return None
 
 
 def write_exr(path: str | os.PathLike, image: np.ndarray, *, metadata: dict | None = None) -> None:

@@ -47,7 +47,6 @@ split into appends nor on the thread.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import queue
@@ -482,9 +481,8 @@ class EventWriter:
         worker = getattr(self, "_worker", None)
         if worker is not None:
             worker.join(cancel=True)
-        with contextlib.suppress(Exception):
-            if getattr(self, "_file", None) is not None and self._file.id.valid:
-                self._file.close()
+        from gevsim.io._h5discard import discard_h5  # a failed flush (full disk) must not leave HDF5 half closed
+        discard_h5(getattr(self, "_file", None))
         self._stage.discard()
         self._file = None
 
