@@ -13,6 +13,10 @@ The builder's files are found by running it (:func:`build_shapes`) and recording
   ``build(options)`` runs (``open``, ``numpy.load``, Pillow, imageio, helper
   modules it imports: Python's ``open`` audit event), except files of the Python
   installation (standard library, site-packages) and gevsim's own modules;
+- every module the builder's import statements name, and theirs in turn, as
+  imported (``sys.modules``): found in every build, not only the first one in a
+  process that imports them; what an earlier build in the process found stays
+  listed, so a scene's digest does not change within a process;
 - every string in the returned Mitsuba dict that names an existing file
   (``filename`` of bitmap textures, meshes, spectra), relative to the
   builder's folder or the working directory, or absolute;
@@ -43,6 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from gevsim.errors import ConfigError
+from gevsim.render.input_files import sha256_of
 from gevsim.render.manifest import SceneManifest
 from gevsim.render.manifest_checks import call_build
 from gevsim.render.xml_scene import is_xml, load_xml_objects, xml_inputs
@@ -53,6 +58,8 @@ _hooked = False
 _memo_lock = threading.Lock()
 #: (builder, options) -> (stat signatures of the files found, the files found).
 _found: dict[tuple[str, str], tuple[tuple, tuple[Path, ...]]] = {}
+#: (builder, options) -> every file a build of it found in this process (issue 24 #7).
+_ever_found: dict[tuple[str, str], set[Path]] = {}
 #: (path, inode, size, mtime_ns) -> sha256 of the contents.
 _hashes: dict[tuple, str] = {}
 _WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
@@ -168,6 +175,54 @@ def _source_constants(path: Path) -> list[str]:
     return [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)]
 
 
+def _imported_names(path: Path, package: str | None) -> set[str]:
+    """Every module a Python file's import statements name (at any depth), with their parent packages."""
+    try:
+        tree = ast.parse(path.read_text(), filename=str(path))
+    except (OSError, SyntaxError, ValueError):
+        return set()
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                try:
+                    base = importlib.util.resolve_name("." * node.level + base, package)
+                except (ImportError, ValueError):
+                    continue
+            names.add(base)
+            names.update(f"{base}.{alias.name}" for alias in node.names)  # `from pkg import submodule`
+    return {".".join(n.split(".")[:i]) for n in names if n for i in range(1, n.count(".") + 2)}
+
+
+def _module_file(module: Any) -> Path | None:
+    """A module's source file where it counts as a scene input (not the installation's, not gevsim's)."""
+    file = getattr(module, "__file__", None)
+    if isinstance(file, str) and file.endswith(".py") and _is_input(os.path.realpath(file)):
+        return Path(file).resolve()
+    return None
+
+
+def _helper_modules(builder: Path, module: Any) -> set[Path]:
+    """The helper modules a builder imports, directly or through each other: the import statements'
+    names looked up in ``sys.modules``. Unlike the modules a build adds to ``sys.modules``, this is
+    the same in a process's second build (``from helper import X`` binds no module; issue 24 #7)."""
+    found: set[Path] = set()
+    todo, seen = [(builder, getattr(module, "__package__", None))], set[str]()
+    while todo:
+        path, package = todo.pop()
+        for name in sorted(_imported_names(path, package) - seen):
+            seen.add(name)
+            mod = sys.modules.get(name)
+            file = _module_file(mod)
+            if file is not None and file not in found:
+                found.add(file)
+                todo.append((file, getattr(mod, "__package__", None)))
+    return found
+
+
 def _import_builder(path: Path) -> Any:
     spec = importlib.util.spec_from_file_location(f"gevsim_scene_{path.stem}", path)
     if spec is None or spec.loader is None:
@@ -209,7 +264,8 @@ def build_shapes(manifest: SceneManifest) -> tuple[dict, tuple[Path, ...]]:
     if is_xml(builder):  # a Mitsuba XML scene: its objects, and the files its XML names
         import mitsuba as mi
 
-        return load_xml_objects(mi, builder, dict(manifest.options)), tuple(xml_inputs(builder))
+        files = tuple(xml_inputs(builder, manifest.options))  # first: it refuses a FIFO Mitsuba would block on
+        return load_xml_objects(mi, builder, dict(manifest.options)), files
     before = set(sys.modules)
     with _recording() as opened:
         module = _import_builder(builder)
@@ -219,17 +275,18 @@ def build_shapes(manifest: SceneManifest) -> tuple[dict, tuple[Path, ...]]:
     found = {Path(p).resolve() for p in map(os.fsdecode, opened) if _is_input(os.path.realpath(p))}
     modules = [sys.modules[m] for m in set(sys.modules) - before if m in sys.modules]
     modules += [v for v in vars(module).values() if type(v) is type(sys)]
-    for mod in modules:
-        file = getattr(mod, "__file__", None)
-        if isinstance(file, str) and file.endswith(".py") and _is_input(os.path.realpath(file)):
-            found.add(Path(file).resolve())
+    found.update(f for f in map(_module_file, modules) if f is not None)
+    found |= _helper_modules(builder, module)
     found |= _named_files(_strings(shapes), (builder.parent, Path.cwd()))
     found |= _named_files(_source_constants(builder), (builder.parent,))
     found |= _named_files(_strings(manifest.options), {builder.parent, Path(manifest.source).resolve().parent})
     found.discard(builder)
-    files = (builder, *sorted(found))
-    with _memo_lock:
-        _found[_memo_key(manifest)] = (tuple(_signature(f) for f in files), files)
+    key = _memo_key(manifest)
+    with _memo_lock:  # what an earlier build in this process found stays listed: a module imported, or a file
+        found |= _ever_found.setdefault(key, set())  # a helper reads on import, only once per process (#7)
+        _ever_found[key] = set(found)
+        files = (builder, *sorted(found))
+        _found[key] = (tuple(_signature(f) for f in files), files)
     return shapes, files
 
 
@@ -241,7 +298,7 @@ def builder_files(manifest: SceneManifest) -> tuple[Path, ...]:
     is activated).
     """
     if is_xml(manifest.builder):
-        return tuple(xml_inputs(manifest.builder))
+        return tuple(xml_inputs(manifest.builder, manifest.options))
     with _memo_lock:
         known = _found.get(_memo_key(manifest))
     if known is not None and all(_signature(Path(s[0])) == s for s in known[0]):
@@ -266,16 +323,13 @@ def file_sha256(path: Path) -> str:
         known = _hashes.get(sig)
     if known is not None:
         return known
-    h = hashlib.sha256()
     try:
-        with open(path, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
+        digest = sha256_of(path, source=str(path))  # a FIFO, device or huge file: ConfigError, never a hang
     except OSError:
         return "unreadable"
     with _memo_lock:
-        _hashes[sig] = h.hexdigest()
-    return h.hexdigest()
+        _hashes[sig] = digest
+    return digest
 
 
 def files_digest(files: Iterable[Path], *, base: Path) -> str:

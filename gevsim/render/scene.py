@@ -57,7 +57,7 @@ def content_hash(manifest: SceneManifest) -> str:
     scene: the XML and every file it reads, :func:`~gevsim.render.xml_scene.xml_inputs`)."""
     h = hashlib.sha256()
     if is_xml(manifest.builder):
-        for path in xml_inputs(manifest.builder):
+        for path in xml_inputs(manifest.builder, manifest.options):
             h.update(path.name.encode())
             h.update(path.read_bytes() if path.is_file() else b"<missing>")
     else:
