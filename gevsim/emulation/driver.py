@@ -84,7 +84,7 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
                               key="emulation.emulators")
     preset = load_preset(config.sensor)
     if config.sensor_overrides:
-        preset = with_overrides(preset, config.sensor_overrides, source=config.source)
+        preset = with_overrides(preset, config.sensor_overrides, source=config.source, where="sensor")
     if config.aps and preset.aps is None:
         raise ConfigError(f"sensor preset {preset.name!r} has no [aps] table", source=config.source,
                           key="emulation.aps")

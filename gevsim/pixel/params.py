@@ -92,6 +92,12 @@ class PhotoreceptorParams(FromTable):
 
 
 
+#: The largest DSNU (lognormal sigma of the dark current). The lognormal keeps its mean at ``dark_current_a``, so
+#: its median is exp(-sigma^2 / 2) of it: 1 % at sigma = 3, a 20-fold spread per sigma, far beyond measured DSNU
+#: (tens of %). Above it pixels' dark currents underflow to 0 (sigma = 1000 did: ln of 0 in black pixels).
+MAX_DARK_CURRENT_SPREAD = 3.0
+
+
 @dataclass(frozen=True)
 class NoiseParams(FromTable):
     """Pixel noise sources.
@@ -102,7 +108,8 @@ class NoiseParams(FromTable):
     read_noise_v : readout/comparator voltage noise (rms, volts) at the output, band-limited by its
         own pole at ``read_noise_bandwidth_hz`` and then by the output pole (``second_pole_hz``).
     dark_current_a : mean dark current (A); also sets the floor of the log response.
-    dark_current_spread : DSNU, lognormal sigma of the per-pixel dark current (fixed pattern).
+    dark_current_spread : DSNU, lognormal sigma of the per-pixel dark current (fixed pattern), at most
+        :data:`MAX_DARK_CURRENT_SPREAD`.
     prnu : photo response non-uniformity, relative sigma of the per-pixel gain (fixed pattern).
     flicker_noise_v : rms of optional 1/f voltage noise between the two corner frequencies (0: off).
     feedback_shot_noise : the photoreceptor's feedback transistor carries the photocurrent too and adds
@@ -149,6 +156,10 @@ class NoiseParams(FromTable):
             raise FieldError("shot_noise", f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
         for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "flicker_noise_v"):
             real(getattr(self, name), name, low=0)
+        if self.dark_current_spread > MAX_DARK_CURRENT_SPREAD:
+            raise FieldError("dark_current_spread", f"dark_current_spread = {self.dark_current_spread!r} is above "
+                             f"{MAX_DARK_CURRENT_SPREAD:g}: a lognormal that wide has its median under 1 % of the mean "
+                             "dark current, and dark pixels' currents underflow to 0 A")
         real(self.prnu, "prnu", low=0, high=0.5)
         real(self.read_noise_bandwidth_hz, "read_noise_bandwidth_hz", low=0, low_open=True)
         real(self.flicker_noise_low_hz, "flicker_noise_low_hz", low=0, low_open=True)

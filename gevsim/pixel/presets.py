@@ -60,11 +60,15 @@ class SensorPreset:
         )
 
 
-def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None = None) -> SensorPreset:
+def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None = None,
+                   where: str = "") -> SensorPreset:
     """A copy with parameters replaced by name, wherever they live: the sensor geometry
     (``pixel_pitch_m``, ``fill_factor``) or a field of ``photoreceptor``, ``noise``,
-    ``events`` (e.g. ``cutoff_hz``, ``dark_current_a``, ``threshold_mismatch_ln``)."""
+    ``events`` (e.g. ``cutoff_hz``, ``dark_current_a``, ``threshold_mismatch_ln``).
+    Errors name ``source`` and the key, inside the table ``where`` (``sensor`` in an emulation config)."""
     import dataclasses
+
+    prefix = f"{where}." if where else ""
 
     parts: dict[str, Any] = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events,
                              "readout": preset.readout}
@@ -73,19 +77,39 @@ def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None 
         if key in ("pixel_pitch_m", "fill_factor"):
             upper = 1e-3 if key == "pixel_pitch_m" else 1.0
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= upper:
-                raise ConfigError(f"expected a number in (0, {upper}], got {value!r}", source=source, key=key)
+                raise ConfigError(f"expected a number in (0, {upper}], got {value!r}", source=source,
+                                  key=prefix + key)
             top[key] = float(value)
             continue
         owner = next((name for name, obj in parts.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
         if owner is None:
             names = ["pixel_pitch_m", "fill_factor"] + [f.name for obj in parts.values()
                                                         for f in dataclasses.fields(obj)]
-            raise ConfigError(f"no sensor parameter {key!r}{suggest(key, names)}", source=source, key=key)
+            raise ConfigError(f"no sensor parameter {key!r}{suggest(key, names)}", source=source, key=prefix + key)
         try:
             parts[owner] = dataclasses.replace(parts[owner], **{key: value})
         except ValueError as exc:
-            raise ConfigError(str(exc), source=source, key=key) from None
+            raise ConfigError(str(exc), source=source, key=prefix + key) from None
+    if overrides:
+        changed = "dark_current_a" if "dark_current_a" in overrides else next(iter(overrides))
+        check_dark_current(parts["photoreceptor"], parts["noise"], source=source, key=prefix + changed)
     return dataclasses.replace(preset, **parts, **top)
+
+
+def check_dark_current(photoreceptor: PhotoreceptorParams, noise: NoiseParams, *, source: str | None,
+                       key: str) -> None:
+    """A sensor's dark current must be > 0 at its temperature: the photoreceptor responds to
+    ln(I_ph + I_dark), and a black pixel (I_ph = 0) has no finite response without it. (The pixel
+    model itself takes 0 where every photocurrent is positive, as analytic tests use.)"""
+    from gevsim.pixel.noise import dark_current_a
+
+    dark = dark_current_a(noise, photoreceptor.temperature_k)
+    if not dark > 0:
+        at = "" if noise.dark_current_a == 0 else (f" at temperature_k = {photoreceptor.temperature_k:g} "
+                                                    f"(dark_current_a = {noise.dark_current_a:g} A halving every "
+                                                    f"{noise.dark_current_doubling_k:g} K below 300 K)")
+        raise ConfigError(f"the dark current is {dark:g} A{at}; it must be > 0: the photoreceptor's response is "
+                          "ln(I_ph + I_dark), and a black pixel has I_ph = 0", source=source, key=key)
 
 
 def preset_names() -> dict[str, Path]:
@@ -136,9 +160,12 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
     from gevsim.optics import QE_CURVES
 
     qe_name = sensor.get("quantum_efficiency", "fsi")
-    if qe_name not in QE_CURVES:
+    if not isinstance(qe_name, str) or qe_name not in QE_CURVES:
         raise ConfigError(f"unknown quantum_efficiency {qe_name!r}{suggest(str(qe_name), QE_CURVES)}; choose from "
                           f"{', '.join(QE_CURVES)}", source=src, key="sensor.quantum_efficiency")
+    spectrum = sensor.get("bandwidth_reference_spectrum", "D65")
+    if not isinstance(spectrum, str):
+        r.fail("sensor.bandwidth_reference_spectrum", f"expected a lamp spectrum name such as 'D65', got {spectrum!r}")
     receptor = dict(raw["photoreceptor"])
     if "cutoff_ref_lux" in receptor:
         lux = receptor.pop("cutoff_ref_lux")
@@ -148,8 +175,11 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         r.number(raw["photoreceptor"], "cutoff_ref_lux", "photoreceptor", positive=True)
         receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
             lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
-            spectrum=sensor.get("bandwidth_reference_spectrum", "D65"), source=src, qe=QE_CURVES[qe_name])
+            spectrum=spectrum, source=src, qe=QE_CURVES[qe_name])
     aps = raw.get("aps")
+    photoreceptor = PhotoreceptorParams.from_table(receptor, source=src)
+    noise = NoiseParams.from_table(raw["noise"], source=src)
+    check_dark_current(photoreceptor, noise, source=src, key="noise.dark_current_a")
     return SensorPreset(
         name=str(sensor.get("name", path.stem)),
         description=str(sensor.get("description", "")),
@@ -157,8 +187,8 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         height=sensor["height"],
         pixel_pitch_m=float(sensor["pixel_pitch_m"]),
         fill_factor=float(sensor["fill_factor"]),
-        photoreceptor=PhotoreceptorParams.from_table(receptor, source=src),
-        noise=NoiseParams.from_table(raw["noise"], source=src),
+        photoreceptor=photoreceptor,
+        noise=noise,
         events=EventParams.from_table(raw["events"], source=src),
         aps=None if aps is None else ApsParams.from_table(aps, source=src),
         source=src,
