@@ -37,6 +37,11 @@ def cmd_emulate(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out must name an .h5 file, got {args.out!r}", key="--out")
     if Path(args.out).is_dir():
         raise ConfigError(f"{args.out} is a folder; name an .h5 file", key="--out")
+    from gevsim.io.ownership import check_file, is_event_file, sweep_beside
+
+    # Only an earlier emulation file is replaced, never an input of this run.
+    check_file(args.out, "emulation", is_event_file, inputs=[args.config, args.frames, args.evreal, args.video])
+    sweep_beside(args.out)
     if args.config is None:
         return _emulate_frames(args)
     if args.log is not None:

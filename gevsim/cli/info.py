@@ -44,13 +44,16 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from gevsim.io.ownership import check_folder
     from gevsim.pixel import load_preset
     from gevsim.pixel.presets import preset_names
     from gevsim.validation.checks import Settings
-    from gevsim.validation.report import validate, write
+    from gevsim.validation.report import check_sensor_names, validate, write
 
     names = args.sensor or [n for n in preset_names() if n != "ideal"]
     presets = [load_preset(n) for n in names]  # every name checked before any run
+    check_sensor_names(presets)
+    check_folder(args.out, "validation")  # before the runs: only an earlier report is replaced
     settings = Settings.quick() if args.quick else Settings()
     results = []
     for preset in presets:

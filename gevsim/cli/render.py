@@ -11,6 +11,7 @@ from gevsim.errors import ConfigError
 
 
 def cmd_render(args: argparse.Namespace) -> int:
+    from gevsim.io.ownership import check_folder
     from gevsim.render import MitsubaScene, load, override, render_basis
     from gevsim.render.output import write_render
 
@@ -18,6 +19,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     manifest = override(manifest, width=args.width, height=args.height, spp=args.spp, seed=args.seed,
                         noise_target_ln=args.noise_target, max_spp=args.max_spp, time_budget_s=args.time_budget,
                         denoise=args.denoise, duration_s=args.duration, source="command line")
+    check_folder(args.out, "render", inputs=[*manifest.manifests, manifest.builder])  # before rendering
     if args.plots and args.frames is None:
         raise ConfigError("--plots needs --frames RATE (the plots show the mixed sequence)", key="--plots")
     if args.plots:

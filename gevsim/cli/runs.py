@@ -36,7 +36,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     study = dataclasses.replace(study, base=base)
     check_study_scenes(study)
     _quiet_dask(args)
-    with exclusive(args.out, what="study"):  # a second study on this folder is refused before any work
+    with exclusive(args.out, what="study", kind="study"):  # a second study on this folder is refused before any work
         with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
             update, close = _progress(f"study {study.name}", not args.quiet, unit="job")
             try:
@@ -67,7 +67,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         changes["emulators"] = names
     config = dataclasses.replace(config, **changes)
     _quiet_dask(args)
-    with exclusive(args.out, what="dataset"), \
+    with exclusive(args.out, what="dataset", kind="dataset"), \
             make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
         update, close = _progress("dataset", not args.quiet, unit="seq")
         try:

@@ -14,6 +14,7 @@ import numpy as np
 
 import gevsim
 from gevsim.io import MANIFEST, atomic_dir
+from gevsim.io.ownership import check_name
 from gevsim.reconstruct.tonemap import ToneMap
 
 
@@ -77,7 +78,9 @@ def write_reconstructions(out: str | Path, source: str | Path, results: list, gt
             "event_probability": st.event_probability,
             "bits_per_s": float(bits_per_second(st.rates_hz["total"], bits_per_event=bits_per_event)),
         }
-    with atomic_dir(out, marker=MANIFEST) as stage:
+    for name in recs01:
+        check_name(name, key="method")  # a path part below
+    with atomic_dir(out, kind="reconstruction", inputs=[source]) as stage:
         for name, frames in recs01.items():
             for k, img in enumerate(frames):
                 _png(stage / "frames" / name / f"{k:05d}.png", img)

@@ -314,7 +314,7 @@ def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.
     (events per stream over ``indices``), ``events`` (their sum) and ``seconds``.
     """
     out = Path(out_dir)
-    with exclusive(out, what="dataset"):  # one run at a time per folder: a second one is refused
+    with exclusive(out, what="dataset", kind="dataset"):  # one run at a time per folder: a second one is refused
         return _generate(config, out, executor=executor, indices=indices, cache_dir=cache_dir, progress=progress)
 
 

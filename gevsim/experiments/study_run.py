@@ -53,7 +53,7 @@ def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathL
     :class:`~gevsim.errors.ConfigError` naming the folder (:func:`gevsim.io.exclusive`).
     """
     out = Path(out)
-    with exclusive(out, what="study"):  # one study at a time per folder: a second one is refused
+    with exclusive(out, what="study", kind="study"):  # one study at a time per folder: a second one is refused
         return _run_study(study, out, cache_dir=cache_dir, executor=executor, progress=progress,
                           keep_files=keep_files)
 

@@ -24,10 +24,13 @@ import numpy as np
 from gevsim.errors import ConfigError, MissingExtraError
 from gevsim.io.atomic import atomic_path
 from gevsim.io.hdf5 import EventReader
+from gevsim.io.ownership import check_file, sweep_beside
 
 __all__ = ["aedat4_streams", "export_aedat4", "read_aedat4"]
 
 WINDOW_US = 50_000  # events are read and written 50 ms at a time
+MAGIC = b"#!AER-DAT4.0"  # how every AEDAT4 file starts
+CAMERA = "gevsim"  # the camera name of gevsim's exports
 
 
 def _dv():
@@ -59,6 +62,14 @@ def _store(dv, events: np.ndarray):
     return store
 
 
+def _is_gevsim_aedat4(path: Path) -> bool:
+    """Whether ``path`` is an AEDAT4 file gevsim exported: the magic, then a header whose streams' source
+    (the camera name) is ``gevsim`` (read as bytes: no parser runs on a file that may not be ours)."""
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    return head.startswith(MAGIC) and f'<attr key="source" type="string">{CAMERA}</attr>'.encode() in head
+
+
 def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: list[str] | None = None) -> dict:
     """Write the event streams of an emulation file ``path`` as an AEDAT4 file ``out``.
 
@@ -67,6 +78,8 @@ def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: l
     """
     dv = _dv()
     out = Path(out)
+    check_file(out, "AEDAT4", _is_gevsim_aedat4, inputs=[path])  # replaces only an earlier export, never the input
+    sweep_beside(out)
     with EventReader(path) as r:
         mapping = aedat4_streams(r)
         if streams is not None:
@@ -77,7 +90,7 @@ def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: l
             mapping = {k: v for k, v in mapping.items() if v[0] in streams}
         if not mapping:
             raise ConfigError("the file holds no event stream to export", source=str(path))
-        config = dv.io.MonoCameraWriter.Config("gevsim")
+        config = dv.io.MonoCameraWriter.Config(CAMERA)
         for name in mapping:
             config.addEventStream((r.width, r.height), name)
         counts = dict.fromkeys(mapping, 0)

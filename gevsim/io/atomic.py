@@ -23,10 +23,11 @@ import logging
 import os
 import re
 import shutil
+import stat
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +41,7 @@ except ImportError:  # pragma: no cover - not POSIX: no locks, leftovers are rec
 
 log = logging.getLogger(__name__)
 
-#: The file that marks a folder as a gevsim output (written last, inside the stage).
+#: The JSON summary of a render or reconstruction folder (ownership is :data:`gevsim.io.ownership.MARK`).
 MANIFEST = "manifest.json"
 #: What every stage name carries after ``.<target name>.``.
 TAG = "gevsim-"
@@ -262,21 +263,27 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> contextli
 
 
 @contextlib.contextmanager
-def atomic_dir(folder: str | os.PathLike, *, marker: str | None = None) -> Iterator[Path]:
+def atomic_dir(folder: str | os.PathLike, *, kind: str | None = None,
+               inputs: Iterable[str | os.PathLike | None] = ()) -> Iterator[Path]:
     """Yield an empty staging folder that replaces ``folder`` when the block succeeds.
 
-    With ``marker`` (a file name such as ``manifest.json``), refuse to replace an existing
-    folder that is not empty and holds no such file: it is not an earlier output of this kind.
+    With ``kind`` (an output the user named: ``render``, ``reconstruction``, ``validation``), replace only
+    a missing or empty folder or an earlier gevsim output of that kind holding nothing else, and none that
+    is or holds one of ``inputs`` (:func:`gevsim.io.ownership.check_folder`, checked again before the
+    swap); the stage gets the mark of that kind (:func:`gevsim.io.ownership.write_mark`) before it
+    replaces the folder. ``kind`` None (a folder inside an output gevsim owns) replaces whatever is there.
     """
+    from gevsim.io import ownership
+
     folder = Path(folder)
-    if marker is not None and folder.exists():
-        if not folder.is_dir():
-            raise ConfigError("output exists and is not a folder", source=str(folder))
-        if any(folder.iterdir()) and not (folder / marker).is_file():
-            raise ConfigError(f"output folder is not empty and holds no gevsim {marker}; choose another folder",
-                              source=str(folder))
+    if kind is not None:
+        ownership.check_folder(folder, kind, inputs=inputs)
+        ownership.sweep_beside(folder)
     with _staged(folder, folder=True) as stage:
         yield stage
+        if kind is not None:
+            ownership.write_mark(stage, kind)
+            ownership.check_folder(folder, kind, inputs=inputs)
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
@@ -285,15 +292,42 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
         tmp.write_text(text)
 
 
+def _open_lock(folder: Path) -> int:
+    """Open (or create) ``folder``'s lock file: a plain file with one link, never followed through a
+    symbolic link (a planted link would have its target truncated)."""
+    lock = folder / LOCK_NAME
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o666)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise ConfigError(f"{LOCK_NAME} is a symbolic link; gevsim does not follow it: remove it or choose "
+                              "another output folder", source=str(folder)) from None
+        raise ConfigError(f"cannot write here ({exc.strerror or exc})", source=str(folder)) from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_nlink != 1:
+        os.close(fd)
+        raise ConfigError(f"{LOCK_NAME} is not a plain file gevsim made (a device, pipe or hard link); remove it "
+                          "or choose another output folder", source=str(folder))
+    return fd
+
+
 @contextlib.contextmanager
-def exclusive(folder: str | os.PathLike, *, what: str = "run") -> Iterator[Path]:
+def exclusive(folder: str | os.PathLike, *, what: str = "run", kind: str | None = None) -> Iterator[Path]:
     """Hold ``folder``'s lock file (:data:`LOCK_NAME`, created with the folder) for the block: one
     gevsim run at a time writes into an output folder. A second process is refused at once with a
     :class:`~gevsim.errors.ConfigError` naming the folder (and the holder's process id); the same
     process may enter again (a study's run and its report). The lock dies with its process, kill -9
-    included, so nothing needs cleaning up.
+    included, so nothing needs cleaning up. The lock file is never followed through a link.
+
+    With ``kind`` (``study``, ``dataset``), the folder must be missing, empty or an earlier gevsim output
+    of that kind (:func:`gevsim.io.ownership.check_folder`, before anything is created), and gets its mark.
     """
+    from gevsim.io import ownership
+
     folder = Path(folder)
+    if kind is not None and os.path.realpath(folder) not in _held:
+        ownership.check_folder(folder, kind)
+        ownership.sweep_beside(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -304,11 +338,7 @@ def exclusive(folder: str | os.PathLike, *, what: str = "run") -> Iterator[Path]
         if mine is not None:
             mine[1] += 1
     if mine is None:
-        lock = folder / LOCK_NAME
-        try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
-        except OSError as exc:
-            raise ConfigError(f"cannot write here ({exc.strerror or exc})", source=str(folder)) from None
+        fd = _open_lock(folder)
         if fcntl is not None:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -324,6 +354,13 @@ def exclusive(folder: str | os.PathLike, *, what: str = "run") -> Iterator[Path]
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        try:
+            if kind is not None and ownership.read_mark(folder) is None:
+                ownership.check_folder(folder, kind)  # again, now that no other gevsim run can write here
+                ownership.write_mark(folder, kind)
+        except BaseException:
+            os.close(fd)
+            raise
         with _held_lock:
             _held[key] = [fd, 1]
     try:

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 import gevsim
 from gevsim.illumination import flicker_index, percent_flicker
 from gevsim.io import MANIFEST, atomic_dir, write_exr
+from gevsim.io.ownership import check_name
 from gevsim.optics import Lens, cos4_map, focal_plane_irradiance, illuminance_lux, luminance
 from gevsim.render.backend import VariantChoice
 from gevsim.render.basis import BasisSet
@@ -64,6 +65,7 @@ def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSe
         "render_s": basis.render_s.tolist(),
     }
     for name in basis.groups:
+        check_name(name, source=manifest.source, key="light_groups")  # a path part below
         group = next(g for g in manifest.light_groups if g.name == name)
         wf = group.waveform
         info["light_groups"].append({
@@ -75,7 +77,7 @@ def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSe
             "flicker_index": float(flicker_index(wf)),
             "files": [f"basis/{name}/pose_{p:04d}.exr" for p in range(len(basis.times_s))],
         })
-    with atomic_dir(out, marker=MANIFEST) as stage:
+    with atomic_dir(out, kind="render", inputs=[*manifest.manifests, manifest.builder]) as stage:
         for k, name in enumerate(basis.groups):
             for p, t in enumerate(basis.times_s):
                 write_exr(stage / "basis" / name / f"pose_{p:04d}.exr", basis.images[p, k],

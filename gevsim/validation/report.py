@@ -98,12 +98,27 @@ def plot(preset: SensorPreset, curves: dict, out: Path) -> None:
     plt.close(fig)
 
 
+def check_sensor_names(presets: list[SensorPreset]) -> None:
+    """Each preset's name is a folder of the report: a safe path part, and no two alike (ConfigError)."""
+    from gevsim.errors import ConfigError
+    from gevsim.io.ownership import check_name
+
+    seen: dict[str, str] = {}
+    for preset in presets:
+        check_name(preset.name, source=preset.source, key="sensor.name")
+        if preset.name in seen:
+            raise ConfigError(f"two sensors are named {preset.name!r} (also {seen[preset.name]}); their reports "
+                              "would share a folder", source=preset.source, key="sensor.name")
+        seen[preset.name] = preset.source
+
+
 def write(results: list[tuple[SensorPreset, list[Row], dict]], out: str | Path, settings: Settings) -> Path:
     """Write, per preset, ``NAME/report.md``, ``NAME/results.json`` and the plots, and a ``report.md`` that
     joins the presets' tables, into the folder ``out`` (replaced atomically)."""
     from gevsim.io.atomic import atomic_dir
 
-    with atomic_dir(out) as tmp:
+    check_sensor_names([preset for preset, _, _ in results])
+    with atomic_dir(out, kind="validation") as tmp:
         tmp = Path(tmp)
         parts = []
         for preset, rows, curves in results:

@@ -38,18 +38,19 @@ def test_folder_is_swapped_whole_and_survives_a_failure(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no stage or old copy left
 
 
-def test_marker_guards_a_foreign_folder(tmp_path):
+def test_kind_guards_a_foreign_folder(tmp_path):
     foreign = tmp_path / "photos"
     foreign.mkdir()
     (foreign / "holiday.jpg").write_bytes(b"x")
-    with pytest.raises(ConfigError, match=f"no gevsim {MANIFEST}") as err:
-        with atomic_dir(foreign, marker=MANIFEST):
+    (foreign / MANIFEST).write_text("{}")  # a manifest.json alone no longer makes a folder gevsim's
+    with pytest.raises(ConfigError, match="holds files gevsim did not write") as err:
+        with atomic_dir(foreign, kind="render"):
             pass
     assert "--out" not in str(err.value)
     assert (foreign / "holiday.jpg").exists()
     (tmp_path / "file").write_text("x")
     with pytest.raises(ConfigError, match="not a folder"):
-        with atomic_dir(tmp_path / "file", marker=MANIFEST):
+        with atomic_dir(tmp_path / "file", kind="render"):
             pass
 
 
