@@ -1,10 +1,13 @@
 """The files a scene is made of: found, hashed, and in the render cache key (an edited texture re-renders)."""
 
+import importlib
+import sys
+
 import numpy as np
 from conftest import textured_scene
 
 from gevsim.render import MitsubaScene, load, override, render_basis
-from gevsim.render.inputs import scene_digest, scene_input_files
+from gevsim.render.inputs import build_shapes, scene_digest, scene_input_files
 
 
 def names(files):
@@ -38,6 +41,30 @@ def test_files_mitsuba_opens_itself_helper_modules_and_option_files_are_found(tm
     manifest.write_text((tmp_path / "textured.toml").read_text()
                         .replace('builder = "textured.py"', 'builder = "b.py"\noptions = { extra = "extra.npy" }'))
     assert names(scene_input_files(load(manifest))) == ["b.py", "b.toml", "extra.npy", "grain.exr", "helper.py"]
+
+
+def test_from_helper_import_is_found_in_every_build_of_a_process(tmp_path, variant, monkeypatch):
+    """Issue 24 #7: a second build in one process (the study's prerender) missed ``from helper import X``,
+    so the scene's digest changed within the process. Here the helper is even imported before the first build."""
+    textured_scene(tmp_path)
+    helper = f"helper_{tmp_path.name}"  # a module name no other test imports
+    (tmp_path / f"{helper}.py").write_text(f"from {helper}_b import SIZE  # a helper's own helper\n")
+    (tmp_path / f"{helper}_b.py").write_text("SIZE = 2.0\n")
+    (tmp_path / "b.py").write_text(
+        f"from {helper} import SIZE\n\nfrom gevsim.render import shapes as s\n\n\ndef build(options):\n"
+        "    return {'lamp': s.rectangle([0, 0, 4.5], [SIZE, SIZE], facing='-z', emitter=s.area_light())}\n")
+    manifest = tmp_path / "b.toml"
+    manifest.write_text((tmp_path / "textured.toml").read_text().replace('"textured.py"', '"b.py"'))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for name in (helper, f"{helper}_b"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    importlib.import_module(helper)
+    first = scene_digest(manifest)
+    _, files = build_shapes(load(manifest))  # the second build in this process
+    assert names(files) == ["b.py", f"{helper}.py", f"{helper}_b.py"]
+    assert scene_digest(manifest) == first
+    (tmp_path / f"{helper}_b.py").write_text("SIZE = 3.0\n")
+    assert scene_digest(manifest) != first
 
 
 def test_digest_follows_the_contents_of_every_input(tmp_path, variant):
