@@ -42,6 +42,7 @@ from gevsim.render.convergence import (
     next_batch_spp,
     sample_se_ln,
 )
+from gevsim.render.manifest_checks import check_rendered
 from gevsim.render.quality import RenderSettings, resolve_target
 from gevsim.render.scene import MitsubaScene, content_hash, exact_count
 from gevsim.render.trajectory import Pose
@@ -357,6 +358,7 @@ def render_basis(
             if r.time_budget_s is not None:
                 budget = max(0.0, r.time_budget_s - (time.perf_counter() - started)) / (len(times) - p)
             mean, err, se_map, report = render_pose(scene, request, budget_s=budget)
+            check_rendered(mean, source=m.source, t_s=float(t))
             seconds[p] = report.seconds
             quality.append(report.as_dict())
             layers = {f"group{k}": mean[k] for k in range(len(groups))}

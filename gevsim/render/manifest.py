@@ -22,7 +22,7 @@ from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.illumination import Waveform
 from gevsim.illumination import from_spec as waveform_from_spec
 from gevsim.io.ownership import check_name
-from gevsim.render.manifest_checks import check_up
+from gevsim.render.manifest_checks import brightest, check_up
 from gevsim.render.quality import RENDER_KEYS, RenderSettings, check_render_size, quality_settings, render_settings
 from gevsim.render.quality import check_render_overrides as check_render_overrides  # re-exported (it lived here)
 
@@ -328,6 +328,7 @@ def _light_group(name: str, spec: dict, r: TomlReader) -> LightGroup:
         illuminance_lux=float(r.number(spec, mode, where, minimum=0.0)) if mode == "illuminance_lux" else None,
         at_m=float(r.number(spec, "at_m", where, positive=True)) if mode == "illuminance_lux" else None,
     )
+    brightest(mode, getattr(emission, mode), r, where)
     return LightGroup(name=str(name), emitters=tuple(emitters), waveform=waveform, emission=emission)
 
 
