@@ -26,6 +26,9 @@ from gevsim.render.input_files import check_input_file
 
 __all__ = ["is_xml", "load_xml_objects", "xml_inputs"]
 
+#: Deepest chain of ``<include>`` files followed; a deeper one (or a recursion) is refused.
+MAX_INCLUDE_DEPTH = 32
+
 
 def is_xml(path: Path) -> bool:
     return Path(path).suffix.lower() == ".xml"
@@ -78,10 +81,13 @@ def _candidates(name: str, folders: list[Path]) -> list[Path]:
     return found or [folders[-1] / name]
 
 
-def _walk(path: Path, *, top: Path, params: list[tuple[str, str]], search: list[Path], out: dict) -> None:
+def _walk(path: Path, *, top: Path, params: list[tuple[str, str]], search: list[Path], out: dict,
+          depth: int = 0) -> None:
     """Add ``path`` and the files it names to ``out``, ``<include>`` files in place, recursively."""
     if path in out:
         return
+    if depth > MAX_INCLUDE_DEPTH:
+        raise ConfigError(f"<include>s nested more than {MAX_INCLUDE_DEPTH} deep", source=str(path))
     out[path] = None
     try:
         root = ET.parse(path).getroot()
@@ -113,7 +119,7 @@ def _walk(path: Path, *, top: Path, params: list[tuple[str, str]], search: list[
         for target in targets:
             check_input_file(target, source=str(path), key=key)
         if element.tag == "include":
-            _walk(targets[0].resolve(), top=top, params=params, search=search, out=out)
+            _walk(targets[0].resolve(), top=top, params=params, search=search, out=out, depth=depth + 1)
         out.update(dict.fromkeys(t.resolve() for t in targets if t.resolve() not in out))
 
 
