@@ -26,7 +26,7 @@ from gevsim.render.input_files import check_input_file
 
 __all__ = ["is_xml", "load_xml_objects", "xml_inputs"]
 
-#: Deepest chain of ``<include>`` files followed; a deeper one (or a recursion) is refused.
+#: Deepest chain of ``<include>`` files followed; a deeper one is refused (a cycle is followed once).
 MAX_INCLUDE_DEPTH = 32
 
 
