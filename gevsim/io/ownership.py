@@ -1,7 +1,7 @@
 """Outputs gevsim owns (issue 24): gevsim replaces or writes into only a folder or file it wrote itself,
 of the same kind, and never an input of the same run.
 
-A folder output carries a small JSON mark, :data:`MARK` (``.gevsim-output``), naming its ``kind``
+A folder output carries a small JSON mark, :data:`MARK` (``.gevsim.output``), naming its ``kind``
 (one of :data:`FOLDER_KINDS`), the gevsim version and, for the folders that are replaced whole
 (render, reconstruction, validation), the top-level ``entries`` gevsim wrote there. A folder may
 receive an output of kind K when it is missing or empty, or when it carries the mark of kind K and
@@ -30,7 +30,7 @@ from gevsim.errors import ConfigError
 from gevsim.io.atomic import _STAGE, LOCK_NAME, MANIFEST, atomic_write_text, sweep_stale
 
 #: The mark of a folder gevsim wrote (JSON: kind, gevsim version, entries).
-MARK = ".gevsim-output"
+MARK = ".gevsim.output"
 #: Folder outputs replaced whole (their mark lists what they hold) and those written into, resumably.
 REPLACED_KINDS = ("render", "reconstruction", "validation")
 RESUMED_KINDS = ("study", "dataset")

@@ -116,7 +116,8 @@ def test_refuses_to_replace_a_foreign_folder(scene_dir, tmp_path, capsys):
     (out / "thesis.tex").write_text("precious")
     cmd = ["render", str(scene_dir / "panel.toml"), "--out", str(out), "--cache", str(tmp_path / "c")] + SMALL
     assert main(cmd) == 2
-    assert "not empty" in capsys.readouterr().err and (out / "thesis.tex").read_text() == "precious"
+    assert "holds files gevsim did not write (thesis.tex)" in capsys.readouterr().err
+    assert (out / "thesis.tex").read_text() == "precious" and [p.name for p in out.iterdir()] == ["thesis.tex"]
 
 
 def test_cli_exit_code_without_traceback(tmp_path):
