@@ -68,8 +68,9 @@ def cmd_emulate(args: argparse.Namespace) -> int:
           f"{'emulator s':>10s}")
     for (name, count), seconds in zip(summary.counts.items(), summary.event_s.values()):
         st = stats[name]
+        p_frame = f"{st.event_probability:8.3f}" if config.frame_rate_hz > 0 else f"{'-':>8s}"  # no frames: none
         print(f"{name:20s} {count:10d} {st.rates_hz['total']:11.4g} {st.rates_hz['per_pixel_hz']:11.4g} "
-              f"{st.event_probability:8.3f} {seconds:10.2f}")
+              f"{p_frame} {seconds:10.2f}")
     print(f"gevsim: wrote {args.out} in {summary.total_s:.1f} s", file=sys.stderr)
     return 0
 

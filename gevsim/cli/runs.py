@@ -62,7 +62,12 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     if _render_overrides(args):
         changes["render"] = {**config.render, **_render_overrides(args)}
     if args.duration is not None:
-        changes["time"] = dataclasses.replace(config.time, duration_s=args.duration)
+        from gevsim._validate import FieldError
+
+        try:
+            changes["time"] = dataclasses.replace(config.time, duration_s=args.duration)
+        except FieldError as err:  # as study and emulate do: one line naming the flag
+            raise ConfigError(str(err), key="--duration") from None
     if (names := _emulator_names(args)) is not None:
         changes["emulators"] = names
     config = dataclasses.replace(config, **changes)

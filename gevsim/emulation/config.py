@@ -119,7 +119,8 @@ def load_config(path: str | Path) -> EmulationConfig:
     em = r.table(raw, "emulation")
     check_keys(em, EMULATION_KEYS, source=src, where="emulation")
     if not isinstance(em.get("scene"), str):
-        r.fail("emulation.scene", "missing: a built-in scene name or a manifest path")
+        r.fail("emulation.scene", "missing: a built-in scene name or a manifest path" if "scene" not in em else
+               f"expected a built-in scene name or a manifest path, got {em['scene']!r}")
     scene = em["scene"]
     if scene.endswith(".toml") and not Path(scene).is_absolute():
         scene = str((path.parent / scene).resolve())
@@ -128,6 +129,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         r.fail("emulation.sensor", f"expected a preset name or path, got {sensor!r}")
     if sensor.endswith(".toml") and not Path(sensor).is_absolute():
         sensor = str((path.parent / sensor).resolve())
+    _check_names(scene, sensor, r)
     try:
         emulators = check_emulator_list(em.get("emulators", list(EMULATORS)))
     except ValueError as exc:
@@ -187,6 +189,18 @@ def load_config(path: str | Path) -> EmulationConfig:
         source=src,
         text=path.read_text(),
     )
+
+
+def _check_names(scene: str, sensor: str, r: TomlReader) -> None:
+    """An unknown built-in scene or sensor preset name is refused now, naming this file and key (#19)."""
+    from gevsim.pixel.presets import preset_path
+    from gevsim.render.manifest import resolve
+
+    for key, check, value in (("emulation.scene", resolve, scene), ("emulation.sensor", preset_path, sensor)):
+        try:
+            check(value)
+        except ConfigError as exc:
+            r.fail(key, str(exc))
 
 
 def check_consistency(config: EmulationConfig, *, duration_s: float) -> None:

@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from typing import Any
 
-from gevsim.errors import ConfigError, MissingExtraError, suggest
+from gevsim.errors import ConfigError, MissingExtraError, one_line, suggest
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +65,10 @@ def _local(workers: int | None, scheduler: str | None, processes: bool) -> Itera
         yield pool
 
 
+#: How long to wait for a Dask scheduler to answer (distributed's default is 30 s).
+SCHEDULER_CONNECT_S = 10.0
+
+
 @contextlib.contextmanager
 def _dask(workers: int | None, scheduler: str | None, processes: bool) -> Iterator[Executor]:
     """A ``dask.distributed`` client's executor: on the scheduler at ``scheduler``, else on a new
@@ -77,7 +81,11 @@ def _dask(workers: int | None, scheduler: str | None, processes: bool) -> Iterat
         if scheduler is not None:
             if workers is not None:
                 log.warning("workers=%d ignored: the scheduler at %s has its own workers", workers, scheduler)
-            client = stack.enter_context(Client(scheduler))
+            try:
+                client = stack.enter_context(Client(scheduler, timeout=SCHEDULER_CONNECT_S))
+            except (OSError, ValueError, TypeError) as exc:  # unreachable (timed out), refused, a bad address
+                raise ConfigError(f"cannot connect to the Dask scheduler at {scheduler!r}: {one_line(exc)}",
+                                  key="--scheduler") from None
         else:
             cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
                                                        dashboard_address=None))

@@ -124,7 +124,8 @@ def load_study(path: str | Path) -> Study:
     st = r.table(raw, "study")
     check_keys(st, STUDY_KEYS, source=src, where="study")
     if not isinstance(st.get("scene"), str):
-        r.fail("study.scene", "missing: a scene name or manifest path")
+        r.fail("study.scene", "missing: a scene name or manifest path" if "scene" not in st else
+               f"expected a scene name or manifest path, got {st['scene']!r}")
     group = st.get("flicker_group")
     if not (isinstance(group, str) or (isinstance(group, dict) and group
                                        and all(isinstance(v, str) for v in group.values()))):
@@ -164,7 +165,7 @@ def load_study(path: str | Path) -> Study:
                 r.fail(f"sweep.{axis}", f"expected {what}, got {v!r}")
     if isinstance(sweep.get("sensor"), list):
         sweep["sensor"] = [_beside(v, path) for v in sweep["sensor"]]
-    for method in st.get("methods", ["dct", "direct"]):
+    for method in r.list(st, "methods", "study.", ["dct", "direct"]):
         try:
             needs = check_method(method).emulator
         except ValueError as exc:
@@ -322,7 +323,13 @@ def check_study_scenes(study: Study) -> None:
     from gevsim.render import load
 
     for scene in study.axes.get("scene", [study.base["scene"]]):
-        manifest = load(run_scene(study, {"scene": scene}))
+        try:
+            manifest = load(run_scene(study, {"scene": scene}))
+        except ConfigError as exc:  # an unknown name has no file of its own: name the study's key (#19)
+            if exc.source is not None:
+                raise
+            raise ConfigError(str(exc), source=study.source,
+                              key="sweep.scene" if "scene" in study.axes else "study.scene") from None
         group = flicker_group(study, scene)
         if group not in manifest.group_names:
             raise ConfigError(f"scene {manifest.name!r} has no light group {group!r}"

@@ -343,17 +343,19 @@ def exclusive(folder: str | os.PathLike, *, what: str = "run", kind: str | None 
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:
-                holder = ""
-                with contextlib.suppress(OSError, ValueError):
-                    holder = f" (process {int(os.pread(fd, 32, 0).split()[0])})"
+                holder, held_by = "", what
+                with contextlib.suppress(OSError, ValueError, IndexError):  # "PID KIND": the holder's own words
+                    pid, *kind_words = os.pread(fd, 64, 0).decode().split()
+                    holder = f" (process {int(pid)})"
+                    held_by = kind_words[0] if kind_words and kind_words[0].isalpha() else what
                 os.close(fd)
                 if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
                     raise ConfigError(f"cannot lock {LOCK_NAME} ({exc.strerror or exc})", source=str(folder)) from None
-                raise ConfigError(f"another gevsim {what} is writing into this folder{holder}; wait for it to "
+                raise ConfigError(f"another gevsim {held_by} is writing into this folder{holder}; wait for it to "
                                   "finish or choose another --out", source=str(folder)) from None
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+            os.pwrite(fd, f"{os.getpid()} {what}\n".encode(), 0)
         try:
             if kind is not None and ownership.read_mark(folder) is None:
                 ownership.check_folder(folder, kind)  # again, now that no other gevsim run can write here
