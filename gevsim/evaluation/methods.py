@@ -72,14 +72,24 @@ def _windows(r: EventReader, stream: str, t_us) -> list[list[tuple[int, int]]]:
     return out
 
 
+def _thresholds(r: EventReader, emulator: str, shape: tuple[int, ...]) -> np.ndarray:
+    """An emulator's stored thresholds: ``shape`` finite numbers > 0 (a file is untrusted), as float64."""
+    key = layout.thresholds_key(emulator)
+    theta = r.array(key)
+    if theta.shape != shape or theta.dtype.kind not in "iuf":
+        raise ConfigError(f"corrupt {key}: expected {shape} thresholds, got shape {theta.shape} of {theta.dtype}",
+                          source=str(r.path))
+    bad = ~(np.isfinite(theta) & (theta > 0))
+    if np.any(bad):
+        raise ConfigError(f"corrupt {key}: thresholds must be finite and > 0, got {float(theta[bad][0])} "
+                          f"({np.count_nonzero(bad)} of {theta.size})", source=str(r.path))
+    return theta.astype(np.float64)
+
+
 def _decoding_inputs(r: EventReader, emulator: str, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     """The stored thresholds and initial ternary state of a gradient stream, checked (a file is untrusted:
     the decoder indexes its tables with these values): ConfigError naming the file otherwise."""
-    theta = np.asarray(r.array(layout.thresholds_key(emulator)), dtype=np.float64)
-    want = (2,) + tuple(shape)
-    if theta.shape != want or not np.all(np.isfinite(theta)) or not np.all(theta > 0):
-        raise ConfigError(f"corrupt {layout.thresholds_key(emulator)}: expected {want} finite positive thresholds",
-                          source=str(r.path))
+    theta = _thresholds(r, emulator, (2,) + tuple(shape))
     try:
         state = check_ternary_state(r.array(layout.initial_state_key(emulator)), shape=(shape[0], shape[1]))
     except ValueError as exc:
@@ -106,10 +116,9 @@ def _contrast(r: EventReader, contrast_ln: float | None) -> tuple[float, float]:
     """ON/OFF contrast steps: given, else the DVS thresholds stored in the file, else the default."""
     if contrast_ln is not None:
         return float(contrast_ln), float(contrast_ln)
-    try:
-        on, off = (float(v) for v in r.array(layout.thresholds_key("dvs")))
-    except (KeyError, ConfigError):
-        on = off = brightness.CONTRAST_LN  # frame mode stores no DVS thresholds
+    if layout.thresholds_key("dvs") not in r:
+        return brightness.CONTRAST_LN, brightness.CONTRAST_LN  # frame mode stores no DVS thresholds
+    on, off = (float(v) for v in _thresholds(r, "dvs", (2,)))
     return on, off
 
 
@@ -129,7 +138,11 @@ def _brightness(make: Callable[..., brightness.EventFilter]) -> Callable[..., np
                 filt.feed(r.read(stream, a, b), until_us=b - 1)
             filt.estimate(int(t_us[k]), frames[k])
         if not is_log:  # frame mode compares intensities: undo the log its DVS saw
-            frames = linear_intensity(frames, **file_log_mode(r.attrs))
+            try:
+                frames = linear_intensity(frames, **file_log_mode(r.attrs))
+            except (TypeError, ValueError) as exc:  # the file's log_mode attributes are untrusted
+                raise ConfigError(f"corrupt root attribute log_mode or linlog_threshold: {exc}",
+                                  source=str(r.path)) from None
         return frames
     return run
 
@@ -150,7 +163,10 @@ def _complementary(r, t0, shape, on, off):
     if layout.APS not in r.frame_names:
         raise ConfigError("the complementary filter needs APS frames: emulate with aps = true", source=str(r.path))
     aps, aps_t = r.frames(layout.APS)
-    offset = float(r.array_attrs(f"/frames/{layout.APS}").get("offset_dn", 0.0))
+    offset = r.array_attrs(f"/frames/{layout.APS}").get("offset_dn", 0.0)
+    if not len(aps) or aps.ndim != 3 or not isinstance(offset, float | int | np.number) or not np.isfinite(offset):
+        raise ConfigError(f"corrupt /frames/{layout.APS}: expected (N >= 1, H, W) frames and a finite offset_dn, "
+                          f"got {aps.shape} frames, offset_dn = {offset!r}", source=str(r.path))
     aps_log = pm.log(np.maximum(aps.astype(np.float64) - offset, 1.0))  # DN above black level, in ln
     aps_t = np.asarray(aps_t, np.int64)
     if aps_t.size:

@@ -51,7 +51,10 @@ def ground_truth(reader: EventReader, reference: str = "flicker") -> tuple[np.nd
                           f"choose from {', '.join(REFERENCES)}", key="reference")
     for name, is_log in ((REFERENCES[reference], True), (layout.INTENSITY, False)):
         if name in reader.frame_names:
-            images, t_us = reader.frames(name)
+            images, t_us = reader.frames(name)  # checked: shape, finite, times sorted within the recording
+            if images.ndim != 3 or not len(images) or images.dtype.kind != "f":
+                raise ConfigError(f"ground-truth frames {name!r} must be (N >= 1, H, W) floats, got "
+                                  f"{images.shape} of {images.dtype}", source=str(reader.path))
             return images.astype(np.float64), np.asarray(t_us, np.int64), is_log
     raise ConfigError("holds no ground-truth frames (log_photocurrent or intensity)", source=str(reader.path))
 

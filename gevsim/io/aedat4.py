@@ -62,6 +62,16 @@ def _store(dv, events: np.ndarray):
     return store
 
 
+def _busy_windows(reader: EventReader, streams) -> list[int]:
+    """Starts of the WINDOW_US windows covering [0, t_end_us] that may hold events of ``streams`` (judged
+    from ms_to_idx): a long recording's empty stretches are skipped, not read window by window."""
+    starts = np.arange(0, reader.t_end_us + 1, WINDOW_US, dtype=np.int64)
+    busy = np.zeros(len(starts), bool)
+    for stream in streams:
+        busy |= reader.index_bounds(stream, starts + WINDOW_US)[1] > reader.index_bounds(stream, starts)[0]
+    return starts[busy].tolist()
+
+
 def _is_gevsim_aedat4(path: Path) -> bool:
     """Whether ``path`` is an AEDAT4 file gevsim exported: the magic, then a header whose streams' source
     (the camera name) is ``gevsim`` (read as bytes: no parser runs on a file that may not be ours)."""
@@ -97,7 +107,7 @@ def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: l
         with atomic_path(out, suffix=".aedat4") as tmp:
             writer = dv.io.MonoCameraWriter(str(tmp), config)
             try:
-                for start in range(0, int(r.t_end_us) + 1, WINDOW_US):
+                for start in _busy_windows(r, dict.fromkeys(s for s, _ in mapping.values())):
                     for stream in dict.fromkeys(s for s, _ in mapping.values()):
                         ev = r.read(stream, start, start + WINDOW_US)
                         for name, (s, axis) in mapping.items():

@@ -49,8 +49,6 @@ from __future__ import annotations
 
 import logging
 import os
-import queue
-import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -60,8 +58,11 @@ from numpy.typing import ArrayLike
 
 from gevsim import __version__
 from gevsim.errors import ConfigError, suggest
-from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE, check_events
+from gevsim.io import checks
+from gevsim.io._worker import _Worker
 from gevsim.io.atomic import Staged
+from gevsim.io.checks import BOOL_ATTR
+from gevsim.io.checks import STANDARD as _STANDARD
 
 log = logging.getLogger(__name__)
 
@@ -78,10 +79,7 @@ GZIP_LEVEL = 1
 QUEUE_CHUNKS = 2
 #: Default bound on the events of one window of :meth:`EventReader.windows` (~13 MiB of brightness events).
 WINDOW_EVENTS = 2**20
-_STANDARD = {"events": BRIGHTNESS_DTYPE, "gradient_events": GRADIENT_DTYPE}
 _RESERVED_ATTRS = {"width", "height", "config_toml", "seed", "gevsim_version", "format", "complete", "t_end_us"}
-#: Marks a dataset stored as uint8 0/1 that holds a bool field.
-BOOL_ATTR = "numpy_dtype"
 
 #: units and meaning of the event fields: field -> (units, meaning); "p" by the field's dtype kind.
 FIELD_ATTRS = {
@@ -190,51 +188,6 @@ class _Stream:
 def _filters(filters: dict, dtype: np.dtype) -> dict:
     """h5py's filter arguments for a dataset of ``dtype``: the shuffle only where items have several bytes."""
     return {**filters, "shuffle": dtype.itemsize > 1}
-
-
-class _Worker:
-    """One thread that runs jobs in order from a bounded queue; the first exception it meets is kept
-    (:meth:`check` raises it) and the jobs after it are dropped."""
-
-    def __init__(self, size: int):
-        self._queue: queue.Queue = queue.Queue(maxsize=size)
-        self.error: BaseException | None = None
-        self._stop = False
-        self._thread = threading.Thread(target=self._run, name="gevsim-hdf5-writer", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while True:
-            job = self._queue.get()
-            try:
-                if job is None:
-                    return
-                if self.error is None and not self._stop:
-                    job()
-            except BaseException as exc:  # raised again in the caller's thread
-                self.error = exc
-            finally:
-                self._queue.task_done()
-
-    def check(self) -> None:
-        if self.error is not None:
-            raise self.error
-
-    def submit(self, job: Callable[[], object]) -> None:
-        self.check()
-        self._queue.put(job)
-
-    def wait(self) -> None:
-        """Block until the queued jobs are done; raise the first failure."""
-        self._queue.join()
-        self.check()
-
-    def join(self, *, cancel: bool = False) -> None:
-        """Run the queued jobs (drop them with ``cancel``) and end the thread."""
-        self._stop = self._stop or cancel
-        if self._thread.is_alive():
-            self._queue.put(None)
-            self._thread.join()
 
 
 class EventWriter:
@@ -400,8 +353,8 @@ class EventWriter:
             raise ValueError(f"frame {name!r}: got {image.shape} {image.dtype}, "
                              f"earlier frames are {images.shape[1:]} {images.dtype}")
         n = images.shape[0]
-        if n and int(t_us) < int(t[n - 1]):
-            raise ValueError(f"frame {name!r}: t={int(t_us)} us is before the previous frame's t={int(t[n - 1])} us")
+        if n and int(t_us) <= int(t[n - 1]):
+            raise ValueError(f"frame {name!r}: t={int(t_us)} us is not after the previous frame's t={int(t[n - 1])} us")
         images.resize((n + 1, *image.shape))
         t.resize((n + 1,))
         images[n], t[n] = image, int(t_us)
@@ -516,6 +469,7 @@ class EventReader:
             self._file.close()
             raise ConfigError("incomplete gevsim event file: the writer did not finish", source=src)
         self._ms_cache: dict[str, np.ndarray] = {}
+        self._dtypes: dict[str, np.dtype] = {}  # streams checked whole (gevsim.io.checks), with their dtypes
 
     def __enter__(self) -> EventReader:
         return self
@@ -533,12 +487,17 @@ class EventReader:
                               source=str(self.path))
         return self._file.attrs[name]
 
-    width = property(lambda self: int(self._root("width")))
-    height = property(lambda self: int(self._root("height")))
-    config_toml = property(lambda self: str(self._root("config_toml")))
-    seed = property(lambda self: int(self._root("seed")))
-    gevsim_version = property(lambda self: str(self._root("gevsim_version")))
-    t_end_us = property(lambda self: int(self._root("t_end_us")))
+    # Attributes are untrusted too: typed and bounded (gevsim.io.checks).
+    width = property(lambda self: checks.bounded_int(self._root("width"), "width", 1, checks.MAX_SIZE_PX,
+                                                     str(self.path)))
+    height = property(lambda self: checks.bounded_int(self._root("height"), "height", 1, checks.MAX_SIZE_PX,
+                                                      str(self.path)))
+    config_toml = property(lambda self: checks.text(self._root("config_toml"), "config_toml", str(self.path)))
+    seed = property(lambda self: checks.bounded_int(self._root("seed"), "seed", -2**63, 2**64 - 1, str(self.path)))
+    gevsim_version = property(lambda self: checks.text(self._root("gevsim_version"), "gevsim_version",
+                                                       str(self.path)))
+    t_end_us = property(lambda self: checks.bounded_int(self._root("t_end_us"), "t_end_us", 0, checks.MAX_T_END_US,
+                                                        str(self.path)))
 
     @property
     def attrs(self) -> dict:
@@ -553,18 +512,20 @@ class EventReader:
 
     @property
     def frame_names(self) -> tuple[str, ...]:
-        return tuple(sorted(self._file["frames"])) if "frames" in self._file else ()
+        return tuple(sorted(self._file["frames"])) if isinstance(self._file.get("frames"), h5py.Group) else ()
 
     def _stream(self, stream: str) -> h5py.Group:
         if stream not in self.streams:
             raise ConfigError(f"no event stream {stream!r}{suggest(stream, self.streams)}; "
                               f"streams: {', '.join(self.streams) or 'none'}", source=str(self.path))
+        if stream not in self._dtypes:  # the whole stream is checked once, before any of it is used
+            self._dtypes[stream] = checks.check_stream(self._file[stream], shape=(self.height, self.width),
+                                                       t_end_us=self.t_end_us, source=str(self.path))
         return self._file[stream]
 
     def dtype(self, stream: str = "events") -> np.dtype:
-        group = self._stream(stream)
-        return np.dtype([(name, np.bool_ if group[name].attrs.get(BOOL_ATTR) == "bool" else group[name].dtype)
-                         for name in group.attrs["fields"]])
+        self._stream(stream)
+        return self._dtypes[stream]
 
     def ms_to_idx(self, stream: str = "events") -> np.ndarray:
         return self._stream(stream)["ms_to_idx"][:]
@@ -643,14 +604,8 @@ class EventReader:
         b = lo + (int(np.searchsorted(t, t_end_us, side="left")) if t_end_us is not None else len(t))
         b = max(a, b)
         out = np.empty(b - a, dtype=dtype)
-        for name in dtype.names or ():
+        for name in dtype.names or ():  # values checked by _stream (compiled kernels index with them)
             out[name] = t[a - lo:b - lo] if name == "t" else group[name][a:b]  # uint8 0/1 -> bool where marked
-        if out.dtype in (BRIGHTNESS_DTYPE, GRADIENT_DTYPE):  # a file is untrusted: compiled kernels index with these
-            shape = (self.height, self.width)  # (its own errors name a missing attribute)
-            try:
-                check_events(out, name=f"/{stream}", shape=shape)
-            except ValueError as exc:
-                raise ConfigError(f"corrupt event data: {exc}", source=str(self.path)) from None
         return out
 
     def frames(self, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -658,14 +613,17 @@ class EventReader:
         if name not in self.frame_names:
             raise ConfigError(f"no frames {name!r}{suggest(name, self.frame_names)}; "
                               f"frames: {', '.join(self.frame_names) or 'none'}", source=str(self.path))
-        g = self._file["frames"][name]
-        return g["images"][:], g["t"][:]
+        return checks.read_frames(self._file["frames"][name], shape=(self.height, self.width),
+                                  t_end_us=self.t_end_us, source=str(self.path))
+
+    def __contains__(self, path: str) -> bool:
+        return path in self._file
 
     def array(self, path: str) -> np.ndarray:
         """The dataset stored at ``path`` (see :meth:`EventWriter.write_array`)."""
         if path not in self._file or not isinstance(self._file[path], h5py.Dataset):
             raise ConfigError(f"no dataset {path!r}", source=str(self.path))
-        return self._file[path][()]
+        return checks.read(self._file[path], source=str(self.path))
 
     def array_attrs(self, path: str) -> dict:
         return dict(self._file[path].attrs)
