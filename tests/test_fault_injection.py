@@ -88,8 +88,8 @@ def assert_none_alive(pids: set[int], *, within_s: float = 15.0) -> None:
 
 def stages(*folders: Path) -> list[str]:
     """Hidden files and folders under ``folders`` (temporaries of atomic writes are ``.NAME.gevsim-XXXXXXXX...``),
-    but the lock file of an output folder."""
-    return sorted(str(p) for f in folders for p in f.rglob(".*") if p.name != ".gevsim.lock")
+    but the lock file and the ownership mark of an output folder."""
+    return sorted(str(p) for f in folders for p in f.rglob(".*") if p.name not in (".gevsim.lock", ".gevsim.output"))
 
 
 def finish(proc: subprocess.Popen) -> None:

@@ -357,9 +357,10 @@ def exclusive(folder: str | os.PathLike, *, what: str = "run", kind: str | None 
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()} {what}\n".encode(), 0)
         try:
-            if kind is not None and ownership.read_mark(folder) is None:
+            if kind is not None:
                 ownership.check_folder(folder, kind)  # again, now that no other gevsim run can write here
-                ownership.write_mark(folder, kind)
+                if ownership.read_mark(folder) is None:
+                    ownership.write_mark(folder, kind)
         except BaseException:
             os.close(fd)
             raise
