@@ -41,6 +41,9 @@ def cmd_emulate(args: argparse.Namespace) -> int:
 
     # Only an earlier emulation file is replaced, never an input of this run.
     check_file(args.out, "emulation", is_event_file, inputs=[args.config, args.frames, args.evreal, args.video])
+    from gevsim.resources import check_writable
+
+    check_writable(args.out)  # before the render: a read-only or missing place fails now
     sweep_beside(args.out)
     if args.config is None:
         return _emulate_frames(args)

@@ -12,6 +12,7 @@ from gevsim.errors import ConfigError
 def cmd_reconstruct(args: argparse.Namespace) -> int:
     from gevsim.evaluation import reconstruct_file, write_reconstructions
     from gevsim.io.ownership import check_folder
+    from gevsim.resources import check_writable
 
     methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
     if not methods:
@@ -20,6 +21,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
         raise ConfigError(f"no method named in {', '.join(map(repr, args.method))}; choose from "
                           f"{', '.join(METHODS)}", key="--method")
     check_folder(args.out, "reconstruction", inputs=[args.file])  # before the work: only an earlier one is replaced
+    check_writable(args.out)
     results, gt, tone = [], None, None
     update, close = _progress("reconstruct", not args.quiet, unit="method")
     try:

@@ -14,12 +14,18 @@ def cmd_render(args: argparse.Namespace) -> int:
     from gevsim.io.ownership import check_folder
     from gevsim.render import MitsubaScene, load, override, render_basis
     from gevsim.render.output import write_render
+    from gevsim.resources import check_render_frames, check_writable
 
     manifest = load(args.scene)
     manifest = override(manifest, width=args.width, height=args.height, spp=args.spp, seed=args.seed,
                         noise_target_ln=args.noise_target, max_spp=args.max_spp, time_budget_s=args.time_budget,
                         denoise=args.denoise, duration_s=args.duration, source="command line")
     check_folder(args.out, "render", inputs=[*manifest.manifests, manifest.builder])  # before rendering
+    check_writable(args.out)
+    if args.frames is not None:  # their memory and disk, before rendering
+        r = manifest.render
+        check_render_frames(args.frames, manifest.duration_s, width=r.width, height=r.height,
+                            channels=1 if r.flavour == "mono" else 3, out=args.out)
     if args.plots and args.frames is None:
         raise ConfigError("--plots needs --frames RATE (the plots show the mixed sequence)", key="--plots")
     if args.plots:

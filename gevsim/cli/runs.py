@@ -25,7 +25,14 @@ def cmd_study(args: argparse.Namespace) -> int:
     if _render_overrides(args):
         base["render"] = {**base["render"], **_render_overrides(args)}
     if args.duration is not None:
+        from gevsim._validate import FieldError
+        from gevsim.timebase import TimeGrid
+
         base["duration_s"] = args.duration
+        try:  # before the output folder and its runs/ are made
+            TimeGrid(**{k: base[k] for k in ("duration_s", "step_s", "chunk_steps", "frame_rate_hz")})
+        except FieldError as err:
+            raise ConfigError(str(err), key="--duration") from None
     if (names := _emulator_names(args)) is not None:
         from gevsim.evaluation.methods import METHODS
 

@@ -46,6 +46,7 @@ from gevsim.pixel.noise import dark_current_a
 from gevsim.pixel.presets import SensorPreset, with_overrides
 from gevsim.render import MitsubaScene, SceneManifest, VariantChoice, load, override, render_basis
 from gevsim.render.scene_config import resolved_config, scene_optics
+from gevsim.resources import check_emulation
 
 log = logging.getLogger(__name__)
 #: ``progress(done, total)``, called as work completes.
@@ -77,6 +78,7 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
     duration = config.duration_s or manifest.duration_s
     manifest = override(manifest, duration_s=duration)
     check_consistency(config, duration_s=duration)
+    check_emulation(config, width=manifest.render.width, height=manifest.render.height, duration_s=duration)
     for name in config.emulators:
         if EMULATORS[name].even_size and (manifest.render.width % 2 or manifest.render.height % 2):
             raise ConfigError(f"{name} (resolution compression) needs an even width and height, got "

@@ -60,6 +60,7 @@ from gevsim.errors import ConfigError
 from gevsim.events.gradient import PAPER_THRESHOLDS
 from gevsim.io import EventWriter
 from gevsim.pixel.params import EventParams
+from gevsim.resources import check_frame_memory, check_frame_times
 
 
 def _check_frames(frames, t_s) -> tuple[np.ndarray, np.ndarray]:
@@ -202,6 +203,8 @@ def run_frames(frames: np.ndarray, t_s: np.ndarray, out: str | os.PathLike, *, s
         _check_sizes(frames.shape[1:], emulators)
     except (ValueError, TypeError) as exc:
         raise ConfigError(str(exc), source=None if source is None else str(source)) from None
+    check_frame_memory(len(frames), frames.shape, source=None if source is None else str(source))
+    check_frame_times(float(t_s[-1]), source=None if source is None else str(source))
     real(threshold_mismatch_ln, "threshold_mismatch_ln", low=0.0)
     _check_log_mode(log_mode, LOG_EPS, LINLOG_THRESHOLD)
     dvs = EventParams(threshold_on_ln=0.2, threshold_off_ln=0.2, threshold_mismatch_ln=threshold_mismatch_ln)

@@ -55,6 +55,7 @@ from gevsim.io import EventReader, atomic_write_text, exclusive, export_evreal, 
 from gevsim.io.evreal import MIN_EVENTS
 from gevsim.reconstruct.tonemap import ToneMap
 from gevsim.render.quality import check_render_overrides
+from gevsim.resources import MAX_SEQUENCES
 from gevsim.timebase import TimeGrid
 
 log = logging.getLogger(__name__)
@@ -161,7 +162,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         r.fail("dataset.evreal", f"expected true or false, got {evreal!r}")
     config = DatasetConfig(
         scenes=_names(r, ds, "dataset", "scenes", None, load, base=path.parent),
-        sequences=r.number(ds, "sequences", "dataset", positive=True, integer=True),
+        sequences=r.number(ds, "sequences", "dataset", positive=True, integer=True, maximum=MAX_SEQUENCES),
         seed=r.number(ds, "seed", "dataset", 0, minimum=0, integer=True),
         sensors=_names(r, ds, "dataset", "sensors", ["davis346"], load_preset, base=path.parent),
         emulators=emulators,

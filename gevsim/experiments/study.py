@@ -74,6 +74,7 @@ from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
+from gevsim.resources import MAX_STUDY_RUNS, at_most
 from gevsim.timebase import TimeGrid
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
@@ -150,6 +151,10 @@ def load_study(path: str | Path) -> Study:
             if bad or (v < low if low is not None else v <= 0):
                 r.fail(f"sweep.{axis}", f"expected {'non-negative' if low is not None else 'positive'} numbers, "
                                         f"got {v!r}")
+    for axis in ("duty", "modulation"):  # fractions of the period and of the mean: refused here, not after the render
+        for v in sweep.get(axis, []):
+            if v > 1:
+                r.fail(f"sweep.{axis}", f"expected fractions in (0, 1], got {v!r}")
     for values in sweep.get("thresholds_ln", []):
         if (not isinstance(values, list) or not values
                 or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) and t > 0
@@ -227,6 +232,8 @@ def _check_runs(study: Study, r: TomlReader) -> None:
                     with_overrides(preset, {axis: value})
                 except ConfigError as exc:
                     r.fail(f"sweep.{axis}", f"value {i + 1} of {len(sweep[axis])}: {_message(exc)}")
+    at_most(math.prod(len(v) for v in sweep.values()), MAX_STUDY_RUNS, source=study.source, key="sweep",
+            what="the number of runs (the product of the sweep axes' lengths)")
     runs = study.runs()
     for k, params in enumerate(runs):
         where = f"run {k + 1} of {len(runs)}: {json.dumps(params)}"

@@ -103,6 +103,9 @@ def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: l
         config = dv.io.MonoCameraWriter.Config(CAMERA)
         for name in mapping:
             config.addEventStream((r.width, r.height), name)
+        from gevsim.resources import check_export  # dv-processing aborts the process on a full disk: check first
+
+        check_export(sum(r.count(s) for s in dict.fromkeys(s for s, _ in mapping.values())), out, source=str(out))
         counts = dict.fromkeys(mapping, 0)
         with atomic_path(out, suffix=".aedat4") as tmp:
             writer = dv.io.MonoCameraWriter(str(tmp), config)

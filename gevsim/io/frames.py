@@ -15,6 +15,7 @@ from gevsim._portable import combine
 from gevsim._validate import FieldError, increasing, real
 from gevsim.errors import ConfigError, MissingExtraError, one_line
 from gevsim.io.evreal import import_evreal
+from gevsim.resources import check_frame_memory
 
 log = logging.getLogger(__name__)
 
@@ -145,6 +146,8 @@ def load_frame_folder(folder: str | os.PathLike, *, fps: float | None = None) ->
         if frames and img.shape != frames[0].shape:
             raise ConfigError(f"frame shape {img.shape} differs from {frames[0].shape} of {files[0].name}",
                               source=str(path))
+        if not frames:  # the whole sequence's memory, before the other frames are read
+            check_frame_memory(len(files), img.shape, source=str(folder))
         frames.append(img)
     ts_path = folder / TIMESTAMPS_FILE
     if ts_path.is_file():

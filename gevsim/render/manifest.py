@@ -25,6 +25,7 @@ from gevsim.io.ownership import check_name
 from gevsim.render.manifest_checks import brightest, check_up
 from gevsim.render.quality import RENDER_KEYS, RenderSettings, check_render_size, quality_settings, render_settings
 from gevsim.render.quality import check_render_overrides as check_render_overrides  # re-exported (it lived here)
+from gevsim.resources import MAX_SPP
 
 TABLES = ("scene", "render", "sequence", "camera", "motion", "light_groups", "optics")
 SCENE_KEYS = ("name", "description", "builder", "options", "extends")
@@ -354,7 +355,8 @@ def override(manifest: SceneManifest, *, source: str | None = None, **changes: A
         if key == "seed":
             r.number(changes, key, "render", minimum=0, integer=True)
         elif isinstance(value, (int, float)) and not isinstance(value, bool):
-            r.number(changes, key, "render", positive=True)
+            spp = key == "spp"  # a whole number of samples, at most MAX_SPP
+            r.number(changes, key, "render", positive=True, integer=spp, maximum=MAX_SPP if spp else None)
     changes.update(quality_settings(changes, r, "render"))
     check_render_size(changes.get("width", manifest.render.width), changes.get("height", manifest.render.height), r,
                       "render")

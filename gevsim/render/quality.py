@@ -15,6 +15,7 @@ from gevsim.config import TomlReader
 from gevsim.errors import check_keys, suggest
 from gevsim.render.backend import FLAVOURS
 from gevsim.render.convergence import METRICS as NOISE_METRICS
+from gevsim.resources import MAX_SPP
 
 #: The keys of the noise-target mode (:class:`RenderSettings`).
 QUALITY_KEYS = ("noise_target_ln", "noise_percentile", "max_spp", "time_budget_s", "sampler", "noise_floor_rel",
@@ -116,7 +117,7 @@ def render_settings(table: dict, r: TomlReader, where: str = "render") -> Render
     settings = RenderSettings(
         width=r.number(table, "width", where, d.width, positive=True, integer=True),
         height=r.number(table, "height", where, d.height, positive=True, integer=True),
-        spp=r.number(table, "spp", where, d.spp, positive=True, integer=True),
+        spp=r.number(table, "spp", where, d.spp, positive=True, integer=True, maximum=MAX_SPP),
         seed=r.number(table, "seed", where, d.seed, minimum=0, integer=True),
         flavour=str(table.get("flavour", d.flavour)),
         max_depth=r.number(table, "max_depth", where, d.max_depth, positive=True, integer=True),
@@ -134,7 +135,7 @@ def check_render_overrides(table: dict, r: TomlReader, where: str) -> None:
     check_keys(table, OVERRIDE_KEYS, source=r.source, where=where)
     for key in ("width", "height", "spp"):
         if key in table:
-            r.number(table, key, where, positive=True, integer=True)
+            r.number(table, key, where, positive=True, integer=True, maximum=MAX_SPP if key == "spp" else None)
     check_render_size(table.get("width", 1), table.get("height", 1), r, where)
     if "seed" in table:
         r.number(table, "seed", where, minimum=0, integer=True)
@@ -160,7 +161,7 @@ def quality_settings(table: dict, r: TomlReader, where: str) -> dict:
             r.fail(f"{where}.noise_percentile", f"must be in (0, 100], got {p!r}")
         out["noise_percentile"] = p
     if "max_spp" in table:
-        out["max_spp"] = r.number(table, "max_spp", where, minimum=1, integer=True)
+        out["max_spp"] = r.number(table, "max_spp", where, minimum=1, integer=True, maximum=MAX_SPP)
     if "time_budget_s" in table:
         out["time_budget_s"] = float(r.number(table, "time_budget_s", where, positive=True))
     if "noise_floor_rel" in table:

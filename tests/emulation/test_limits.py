@@ -42,10 +42,11 @@ def test_a_pose_spacing_that_needs_billions_of_renders_is_refused(tmp_path, caps
 
 
 def test_a_basis_larger_than_memory_is_refused(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("gevsim._resources.physical_memory_bytes", lambda: 2**20)
-    err = refused(tmp_path, capsys, emulation(tmp_path, render="width = 320\nheight = 240\nspp = 2\n"))
+    monkeypatch.setattr("gevsim._resources.physical_memory_bytes", lambda: 2**21)  # chunks of 1 step fit
+    err = refused(tmp_path, capsys, emulation(tmp_path, emulation="chunk_steps = 1",
+                                              render="width = 320\nheight = 240\nspp = 2\n"))
     assert "card.toml: render.width: 1 poses x 1 light groups of 320x240 px need about 2.93 MiB of memory; " \
-           "this machine has 1 MiB" in err
+           "this machine has 2 MiB" in err
 
 
 def test_millions_of_frames_are_refused(tmp_path, capsys):
