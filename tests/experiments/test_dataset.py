@@ -238,7 +238,7 @@ def test_a_second_dataset_run_on_the_same_folder_is_refused(tmp_path, capsys):
     import subprocess
     import sys
 
-    holder_code = ("import sys, time\nfrom gevsim.io import exclusive\nwith exclusive(sys.argv[1]):\n"
+    holder_code = ("import sys, time\nfrom gevsim.io import exclusive\nwith exclusive(sys.argv[1], what='dataset'):\n"
                    "    print('holding', flush=True)\n    time.sleep(600)\n")
     out = tmp_path / "out"
     holder = subprocess.Popen([sys.executable, "-c", holder_code, str(out)], stdout=subprocess.PIPE, text=True)
