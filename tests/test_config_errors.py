@@ -195,7 +195,8 @@ def test_mitsubas_include_chain_is_one_line(tmp_path, capsys, scene):
     bad.write_text(scene.read_text().replace('builder = "card.py"', 'builder = "a.xml"'))
     err = one_error(capsys, ["render", str(bad), "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c"),
                              "-q"])
-    assert "a.xml" in err
+    assert f"{tmp_path / 'a.xml'}: Mitsuba could not load the XML scene:" in err
+    assert "Exceeded maximum include recursion depth" in err  # the innermost cause, last of the chain
 
 
 # --- emulation, study and dataset configs (#19) -----------------------------------------------------------------
