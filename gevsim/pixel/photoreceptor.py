@@ -130,10 +130,10 @@ class Photoreceptor:
         u0 = pm.log(first)
         c1, c2 = period(u0, u0)
         a1, a2 = period(u0 + 1.0, u0)
-        w1 = (c1 - u0) / (1.0 - (a1 - c1))  # fixed point, as a deviation from u0
+        w1 = _fixed_point(c1 - u0, a1 - c1)  # fixed point, as a deviation from u0
         if p.second_pole_hz is not None:
             _, b2 = period(u0, u0 + 1.0)
-            w2 = ((a2 - c2) * w1 + (c2 - u0)) / (1.0 - (b2 - c2))
+            w2 = _fixed_point((a2 - c2) * w1 + (c2 - u0), b2 - c2)
         else:
             w2 = w1
         self.v1, self.v2 = u0 + w1, u0 + w2
@@ -206,3 +206,10 @@ class Photoreceptor:
         self.step += len(t)
         self.started = True
         return out.reshape((len(t),) + self.shape)
+
+
+def _fixed_point(shift: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """x = shift + gain x: shift / (1 - gain). A pole so slow that one period does not move it in double
+    precision (gain rounds to 1: a dark current of ~1e-26 A) keeps its start (x = 0), not 0 / 0 = NaN."""
+    den = 1.0 - gain
+    return np.divide(shift, den, out=np.zeros_like(shift), where=den != 0)

@@ -21,6 +21,10 @@ from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams, R
 TABLES = ("sensor", "photoreceptor", "noise", "events", "aps", "readout")
 SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_factor",
                "bandwidth_reference_spectrum", "quantum_efficiency")
+#: The least dark current of a preset's median pixel, in electrons per second (1.6e-19 A). Far below it,
+#: black pixels' photoreceptors have cutoffs of picohertz and their noise no finite settled value (davis346 at
+#: dark_current_a = 1e-26 A gave NaN after the render).
+MIN_DARK_ELECTRONS_PER_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -110,6 +114,17 @@ def check_dark_current(photoreceptor: PhotoreceptorParams, noise: NoiseParams, *
                                                     f"{noise.dark_current_doubling_k:g} K below 300 K)")
         raise ConfigError(f"the dark current is {dark:g} A{at}; it must be > 0: the photoreceptor's response is "
                           "ln(I_ph + I_dark), and a black pixel has I_ph = 0", source=source, key=key)
+    import math
+
+    from scipy.constants import elementary_charge
+
+    median = dark * math.exp(-0.5 * noise.dark_current_spread ** 2)  # the lognormal DSNU keeps the mean
+    if median < elementary_charge * MIN_DARK_ELECTRONS_PER_S:
+        raise ConfigError(f"the median pixel's dark current is {median:.3g} A ({median / elementary_charge:.3g} "
+                          f"electrons/s) at temperature_k = {photoreceptor.temperature_k:g}; it must be at least "
+                          f"{MIN_DARK_ELECTRONS_PER_S:g} electron/s ({elementary_charge * MIN_DARK_ELECTRONS_PER_S:.3g}"
+                          " A): below that it is single electrons seconds apart, not the continuous current that the "
+                          "model's ln(I_ph + I_dark) and shot noise assume", source=source, key=key)
 
 
 def preset_names() -> dict[str, Path]:
