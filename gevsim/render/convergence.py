@@ -210,6 +210,7 @@ class BatchAccumulator:
         mean = p / n
         var = np.maximum(q - n * mean * mean, 0.0) / dof  # per-sample variance, (M + 1, H, W)
         scale = np.abs(mean) + self.floor_rel * mean.reshape(len(mean), -1).mean(axis=1)[:, None, None]
+        scale = np.where(scale > 0, scale, 1.0)  # 0 only in a black mixture (no light): no variance, error 0
         if metric == "absolute":
             rel_var = var / scale**2
         else:
@@ -251,7 +252,7 @@ def sample_se_ln(mixtures: np.ndarray, luminance: np.ndarray, error: np.ndarray,
     y = np.tensordot(mixtures, np.asarray(luminance, float), axes=1)
     d = np.tensordot(mixtures, np.asarray(error, float), axes=1)
     scale = np.abs(y) + floor_rel * y.reshape(len(y), -1).mean(axis=1)[:, None, None]
-    rel = d / scale
+    rel = d / np.where(scale > 0, scale, 1.0)  # 0 only in a black mixture (no light): error 0, not NaN
     if metric == "flicker":
         rel = rel - rel[-1]  # the reference row becomes 0 and drops out of the max
     return np.sqrt(uniform_filter(rel**2, size=(1, window, window), mode="nearest")).max(axis=0)
