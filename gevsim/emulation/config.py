@@ -49,10 +49,16 @@ from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys
+from gevsim.events.center_surround import MAX_SURROUND_LENGTH_PX
+from gevsim.render.manifest_checks import MAX_LUMINANCE_CD_M2
 from gevsim.render.quality import check_render_overrides
 from gevsim.timebase import TimeGrid
 
 TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
+#: The largest factor on a light group's radiance (light.scale times its group's scale): one that takes a dim
+#: 1 cd/m^2 emitter to the brightest a manifest may state (1e10 cd/m^2). light.scale = 1e300 gave an infinite
+#: photocurrent after the render.
+MAX_LIGHT_SCALE = MAX_LUMINANCE_CD_M2 / 1.0
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
                   "aps", "aps_exposure_s", "cold_start")
 
@@ -168,6 +174,11 @@ def load_config(path: str | Path) -> EmulationConfig:
     if not isinstance(cold_start, bool):
         r.fail("emulation.cold_start", f"expected true or false, got {cold_start!r}")
     grid = TimeGrid.from_section(em, source=src, where="emulation")
+    light_scale = float(r.number(light, "scale", "light", 1.0, positive=True, maximum=MAX_LIGHT_SCALE))
+    for name, scale in group_scale.items():
+        if scale * light_scale > MAX_LIGHT_SCALE:
+            r.fail(f"light.groups.{name}.scale", f"{scale:g} (times light.scale = {light_scale:g}) is above "
+                   f"{MAX_LIGHT_SCALE:g}, the factor that takes a 1 cd/m^2 emitter to the brightest gevsim renders")
     return EmulationConfig(
         scene=scene,
         sensor=sensor,
@@ -180,10 +191,11 @@ def load_config(path: str | Path) -> EmulationConfig:
         render=dict(render),
         thresholds_ln=tuple(float(t) for t in thresholds),
         hysteresis_ln=float(r.number(grad, "hysteresis_ln", "gradient", 0.0, minimum=0.0)),
-        surround_length_px=float(r.number(cs, "surround_length_px", "csdvs", 2.0, positive=True)),
+        surround_length_px=float(r.number(cs, "surround_length_px", "csdvs", 2.0, positive=True,
+                                          maximum=MAX_SURROUND_LENGTH_PX)),
         surround_tau_s=float(r.number(cs, "surround_tau_s", "csdvs", 1e-3, minimum=0.0)),
         sensor_overrides=dict(r.table(raw, "sensor")),
-        light_scale=float(r.number(light, "scale", "light", 1.0, positive=True)),
+        light_scale=light_scale,
         group_scale=group_scale,
         group_waveform=group_waveform,
         source=src,

@@ -26,6 +26,9 @@ from gevsim.pixel.params import REFERENCE_TEMPERATURE_K, EventParams
 
 COLUMN_BLOCK = 16  # columns per parallel work item of the y solves
 ROW_BLOCK = 8  # rows per parallel work item of the x solves
+#: The longest surround space constant: 10^4 px, beyond any sensor's size (the surround is then the frame's mean).
+#: The diffuser's solve uses its square; 1e300 px overflowed it to NaN after the render.
+MAX_SURROUND_LENGTH_PX = 1e4
 
 
 def thomas_coefficients(n: int, c: float) -> tuple[np.ndarray, np.ndarray]:
@@ -160,7 +163,7 @@ class CenterSurroundEmulator:
     def __init__(self, shape: Sequence[int], params: EventParams, *, surround_length_px: float = 2.0,
                  surround_tau_s: float = 1e-3, rng: np.random.Generator, cold_start: bool = False,
                  temperature_k: float = REFERENCE_TEMPERATURE_K):
-        real(surround_length_px, "surround_length_px", low=0.0, low_open=True)
+        real(surround_length_px, "surround_length_px", low=0.0, low_open=True, high=MAX_SURROUND_LENGTH_PX)
         real(surround_tau_s, "surround_tau_s", low=0.0)
         self.dvs = BrightnessEmulator(shape, params, rng=rng, cold_start=cold_start, temperature_k=temperature_k,
                                       light_leak=False)

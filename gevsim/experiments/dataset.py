@@ -47,10 +47,11 @@ from gevsim import __version__
 from gevsim import _portable as pm
 from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
-from gevsim.emulation.config import EmulationConfig
+from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.experiments.executors import run_all
+from gevsim.illumination.base import MAX_FREQUENCY_HZ
 from gevsim.io import EventReader, atomic_write_text, exclusive, export_evreal, sweep_stale
 from gevsim.io.evreal import MIN_EVENTS
 from gevsim.reconstruct.tonemap import ToneMap
@@ -136,10 +137,12 @@ def _randomize(r: TomlReader, table: dict) -> Randomize:
         mains = real_list(table.get("mains_hz", [50.0, 60.0]), "mains_hz", positive=True)
     except FieldError as err:
         r.fail(f"{where}.mains_hz", str(err))
+    if max(mains) > MAX_FREQUENCY_HZ:
+        r.fail(f"{where}.mains_hz", f"{max(mains)!r} is above {MAX_FREQUENCY_HZ:g}")
     d = Randomize()
-    return Randomize(waves, _range(r, table, "frequency_hz", d.frequency_hz),
+    return Randomize(waves, _range(r, table, "frequency_hz", d.frequency_hz, high=MAX_FREQUENCY_HZ),
                      _range(r, table, "duty", d.duty, high=1.0), _range(r, table, "modulation", d.modulation, high=1.0),
-                     mains, _range(r, table, "light_scale", d.light_scale))
+                     mains, _range(r, table, "light_scale", d.light_scale, high=MAX_LIGHT_SCALE))
 
 
 def load_dataset_config(path: str | Path) -> DatasetConfig:

@@ -68,10 +68,11 @@ from pathlib import Path
 from gevsim import __version__
 from gevsim._validate import FieldError
 from gevsim.config import TomlReader, read_toml
-from gevsim.emulation.config import EmulationConfig
+from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
+from gevsim.illumination.base import MAX_FREQUENCY_HZ
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
 from gevsim.resources import MAX_STUDY_RUNS, at_most
@@ -155,6 +156,11 @@ def load_study(path: str | Path) -> Study:
         for v in sweep.get(axis, []):
             if v > 1:
                 r.fail(f"sweep.{axis}", f"expected fractions in (0, 1], got {v!r}")
+    for axis, cap in (("frequency_hz", MAX_FREQUENCY_HZ), ("light_scale", MAX_LIGHT_SCALE),
+                      ("flicker_scale", MAX_LIGHT_SCALE)):  # the caps of a waveform and of emulation's light scale
+        for v in sweep.get(axis, []):
+            if v > cap:
+                r.fail(f"sweep.{axis}", f"{v!r} is above {cap:g}")
     for values in sweep.get("thresholds_ln", []):
         if (not isinstance(values, list) or not values
                 or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) and t > 0
@@ -181,6 +187,8 @@ def load_study(path: str | Path) -> Study:
     rep = r.table(raw, "report")
     check_keys(rep, ("x", "lines"), source=src, where="report")
     for key in ("x", "lines"):
+        if key in rep and not isinstance(rep[key], str):  # a list or table is not hashable, nor an axis
+            r.fail(f"report.{key}", f"expected the name of a sweep axis, got {rep[key]!r}")
         if key in rep and rep[key] not in sweep:
             r.fail(f"report.{key}", f"{rep[key]!r} is not a sweep axis{suggest(str(rep[key]), sweep)}")
     grid = TimeGrid.from_section(st, source=src, where="study", base=STUDY_TIME)

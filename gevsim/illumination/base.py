@@ -15,7 +15,12 @@ import numpy as np
 from gevsim import _validate
 from gevsim.config import FieldError  # noqa: F401  (re-exported for the waveform modules)
 
-__all__ = ["Waveform"]
+__all__ = ["MAX_FREQUENCY_HZ", "Waveform"]
+
+#: The fastest lamp modulation (PWM, sinusoid) or mains frequency: 10 MHz, above any LED driver's switching
+#: (hundreds of kHz to a few MHz) and far above a pixel's bandwidth (kHz). Each PWM period adds four sub-steps
+#: to an emulation: frequency_hz = 1e300 asked for more than memory holds after the render.
+MAX_FREQUENCY_HZ = 1e7
 
 
 def real(obj: Any, name: str, **bounds: Any) -> float:

@@ -11,7 +11,7 @@ import numpy as np
 
 from gevsim import _portable as pm
 
-from .base import FieldError, PeriodicWaveform, PiecewiseLinear, Waveform, as_time, real
+from .base import MAX_FREQUENCY_HZ, FieldError, PeriodicWaveform, PiecewiseLinear, Waveform, as_time, real
 
 __all__ = ["DC", "Sinusoid", "PWM"]
 
@@ -53,7 +53,7 @@ class Sinusoid(PeriodicWaveform):
     phase_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        real(self, "frequency_hz", low=0.0, low_open=True)
+        real(self, "frequency_hz", low=0.0, low_open=True, high=MAX_FREQUENCY_HZ)
         real(self, "modulation", low=0.0, high=1.0)
         real(self, "phase_rad")
 
@@ -109,7 +109,7 @@ class PWM(PeriodicWaveform):
     low_level: float = 0.0
 
     def __post_init__(self) -> None:
-        f = real(self, "frequency_hz", low=0.0, low_open=True)
+        f = real(self, "frequency_hz", low=0.0, low_open=True, high=MAX_FREQUENCY_HZ)
         d = real(self, "duty", low=0.0, high=1.0, low_open=True)
         r = real(self, "rise_s", low=0.0)
         g = real(self, "fall_s", low=0.0)

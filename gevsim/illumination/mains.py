@@ -25,7 +25,7 @@ import numpy as np
 
 from gevsim import _portable as pm
 
-from .base import FieldError, Waveform, real
+from .base import MAX_FREQUENCY_HZ, FieldError, Waveform, real
 from .basic import Sinusoid
 from .table import Table
 
@@ -110,7 +110,7 @@ class Fluorescent(_FirstOrderLamp):
     phase_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        real(self, "mains_hz", low=0.0, low_open=True)
+        real(self, "mains_hz", low=0.0, low_open=True, high=MAX_FREQUENCY_HZ)
         real(self, "phase_rad")
         if self.persistence_s is not None and self.modulation is not None:
             raise FieldError("modulation", "give persistence_s or modulation, not both "
@@ -150,7 +150,7 @@ class Incandescent(_FirstOrderLamp):
     phase_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        real(self, "mains_hz", low=0.0, low_open=True)
+        real(self, "mains_hz", low=0.0, low_open=True, high=MAX_FREQUENCY_HZ)
         real(self, "thermal_time_constant_s", low=0.0)
         real(self, "phase_rad")
 
@@ -183,7 +183,7 @@ class SodiumHID(MainsLamp):
     _N_DARK = 128
 
     def __post_init__(self) -> None:
-        real(self, "mains_hz", low=0.0, low_open=True)
+        real(self, "mains_hz", low=0.0, low_open=True, high=MAX_FREQUENCY_HZ)
         real(self, "reignition_fraction", low=0.0, high=1.0, high_open=True)
         real(self, "persistence_s", low=0.0)
         real(self, "phase_rad")
