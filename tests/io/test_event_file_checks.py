@@ -156,7 +156,12 @@ def test_export_reads_only_the_windows_that_hold_events(tmp_path, monkeypatch):
     ev = _sparse(tmp_path / "sparse.h5", 3_600 * 10**6)
     reads = []
     original = EventReader.read
-    monkeypatch.setattr(EventReader, "read", lambda self, *a: reads.append(a) or original(self, *a))
+
+    def counted(self, *args):
+        reads.append(args)
+        return original(self, *args)
+
+    monkeypatch.setattr(EventReader, "read", counted)
     assert export_aedat4(tmp_path / "sparse.h5", tmp_path / "s.aedat4") == {"events": 3}
     assert [a[1] for a in reads] == [0, 3_600 * 10**6 - 50_000]
     got = read_aedat4(tmp_path / "s.aedat4")["events"]
