@@ -47,11 +47,16 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("gevsim: interrupted", file=sys.stderr)
         return 130
-    except OSError as exc:  # a full disk, a quota, a read-only file system: one line; other OSErrors are bugs
-        if exc.errno not in DISK_ERRORS or args.verbose:
+    except (OSError, RuntimeError) as exc:  # a full disk, a quota, a read-only file system: one line
+        error = exc
+        if isinstance(exc, RuntimeError):  # h5py's and OpenEXR's, from a worker too: the errno is in the text
+            from gevsim.io._h5discard import disk_error
+
+            error = disk_error(exc, None) or exc
+        if not isinstance(error, OSError) or error.errno not in DISK_ERRORS or args.verbose:
             raise
-        where = _failed_path(exc) or (f"{args.out}: " if getattr(args, "out", None) else "")
-        print(f"gevsim: error: {where}{os.strerror(exc.errno).lower()}", file=sys.stderr)
+        where = _failed_path(error.filename, str(exc)) or (f"{args.out}: " if getattr(args, "out", None) else "")
+        print(f"gevsim: error: {where}{os.strerror(error.errno).lower()}", file=sys.stderr)
         return 2
 
 
@@ -59,11 +64,10 @@ def main(argv: list[str] | None = None) -> int:
 DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
 
 
-def _failed_path(exc: OSError) -> str:
+def _failed_path(name: str | bytes | None, message: str) -> str:
     """``"<path>: "`` of the file a write failed on (the target rather than its temporary stage), or ``""``."""
-    name = exc.filename
     if name is None:  # h5py puts the name into the message only: "filename = '...'"
-        found = re.search(r"filename = '([^']*)'", str(exc))
+        found = re.search(r"filename = '([^']*)'", message)
         name = found.group(1) if found else None
     if name is None:
         return ""

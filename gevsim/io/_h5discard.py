@@ -4,15 +4,41 @@ When a write fails with ENOSPC, HDF5 still holds dirty chunks and metadata in it
 file flushes them, fails again, and leaves the dataset identifiers half freed: h5py then segfaults when
 it collects them (issue 24, defect #9). A file that will be deleted anyway needs none of those bytes, so
 its descriptor is first pointed at the null device: the final flush succeeds (into nothing) and HDF5
-frees every identifier cleanly. The staged file is then removed by its owner.
+frees every identifier cleanly. The staged file is then removed by its owner. A file being kept is
+flushed before it is closed (:func:`close_h5`), so that a full disk fails while the file is still whole.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 
 import h5py
+
+
+def disk_error(exc: BaseException, path: str | os.PathLike | None) -> OSError | None:
+    """``OSError(errno, strerror, path)`` for an error whose message carries a full disk's (or a quota's,
+    a read-only file system's) text, as h5py's RuntimeError and OpenEXR's do; None for any other."""
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO, errno.EFBIG):
+        if os.strerror(code) in str(exc):
+            return OSError(code, os.strerror(code), None if path is None else os.fspath(path))
+    return None
+
+
+def close_h5(file: h5py.File, path: str | os.PathLike) -> None:
+    """Close ``file`` (the stage of ``path``) after a flush: a full disk then fails in the flush, with every
+    identifier still open (:func:`discard_h5` can close it), not inside ``close``, after which h5py's
+    identifiers are half freed and touching the file again crashes. A full disk raises OSError."""
+    try:
+        file.flush()
+    except BaseException as exc:  # h5py: "Unable to flush file (... errno = 28, ... No space left on device)"
+        _sink(file)  # at once: h5py objects freed from here on would try to write, fail and break the file
+        error = disk_error(exc, path) if isinstance(exc, RuntimeError) else None
+        if error is None:
+            raise
+        raise error from exc
+    file.close()
 
 
 def discard_h5(file: h5py.File | None) -> None:
@@ -20,6 +46,13 @@ def discard_h5(file: h5py.File | None) -> None:
     its contents become garbage, so call this only for a file that is about to be deleted."""
     if file is None or not file.id.valid:
         return
+    _sink(file)
+    with contextlib.suppress(Exception):
+        file.close()
+
+
+def _sink(file: h5py.File) -> None:
+    """Point ``file``'s descriptor at the null device: every later write of HDF5 succeeds into nothing."""
     with contextlib.suppress(Exception):  # the default (sec2) driver: the handle is a POSIX descriptor
         fd = file.id.get_vfd_handle()
         if isinstance(fd, int) and fd >= 0:
@@ -28,5 +61,3 @@ def discard_h5(file: h5py.File | None) -> None:
                 os.dup2(null, fd)
             finally:
                 os.close(null)
-    with contextlib.suppress(Exception):
-        file.close()

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import errno
 import json
 import os
 
 import numpy as np
 import OpenEXR
 
+from gevsim.io._h5discard import disk_error
 from gevsim.io.atomic import atomic_path
 
 _CHANNELS = {1: ("Y",), 3: ("R", "G", "B")}
@@ -34,19 +34,10 @@ def _write(path, channels: dict, metadata: dict | None) -> None:
             try:
                 f.write(str(tmp))
             except RuntimeError as exc:  # OpenEXR reports a failed write (a full disk) as RuntimeError
-                error = _as_oserror(exc, path)
+                error = disk_error(exc, path)  # "... No space left on device." as OSError(ENOSPC, ..., path)
                 if error is None:
                     raise
                 raise error from exc
-
-
-def _as_oserror(exc: RuntimeError, path) -> OSError | None:
-    """OpenEXR's "Failed to write ... No space left on device." as ``OSError(ENOSPC, ..., path)``,
-    so that callers handle a full disk alike for every format; None for any other error."""
-    for code in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO, errno.EFBIG):
-        if os.strerror(code) in str(exc):
-            return OSError(code, os.strerror(code), str(path))
-    return None
 
 
 def write_exr(path: str | os.PathLike, image: np.ndarray, *, metadata: dict | None = None) -> None:

@@ -59,6 +59,7 @@ from numpy.typing import ArrayLike
 from gevsim import __version__
 from gevsim.errors import ConfigError, suggest
 from gevsim.io import checks
+from gevsim.io._h5discard import close_h5, discard_h5
 from gevsim.io._worker import _Worker
 from gevsim.io.atomic import Staged
 from gevsim.io.checks import BOOL_ATTR
@@ -398,7 +399,7 @@ class EventWriter:
                 self._worker.join()  # the queued chunks are written
                 self._worker.check()
             self._finalise(self._t_end_us if t_end_us is None else int(t_end_us))
-            self._file.close()
+            close_h5(self._file, self.path)  # flushed first: a full disk fails with the file still whole
             if before_commit is not None:
                 before_commit(self._tmp)
             self._stage.commit()
@@ -434,8 +435,7 @@ class EventWriter:
         worker = getattr(self, "_worker", None)
         if worker is not None:
             worker.join(cancel=True)
-        from gevsim.io._h5discard import discard_h5  # a failed flush (full disk) must not leave HDF5 half closed
-        discard_h5(getattr(self, "_file", None))
+        discard_h5(getattr(self, "_file", None))  # a failed write (full disk) must not leave HDF5 half closed
         self._stage.discard()
         self._file = None
 

@@ -134,3 +134,17 @@ def test_render_onto_a_full_disk_prints_one_line_and_keeps_the_earlier_output(tm
     assert capsys.readouterr().err.endswith(f"gevsim: error: {out}: no space left on device\n")
     assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
     assert leftovers(tmp_path) == []
+
+
+def test_a_failed_flush_reported_as_runtime_error_is_one_line(tmp_path, capsys, monkeypatch):
+    # h5py reports a failed flush as RuntimeError (the errno only in its text); study workers raised it as is.
+    out, cfg = tmp_path / "run.h5", emulation(tmp_path)
+
+    def flush(self):
+        raise RuntimeError(f"Unable to synchronously flush file (file write failed: filename = '{self_stage(out)}', "
+                           "errno = 28, error message = 'No space left on device')")
+
+    monkeypatch.setattr("h5py.File.flush", flush)
+    assert main(["emulate", str(cfg), "--out", str(out), "--cache", str(tmp_path / "c"), "-q"]) == 2
+    assert capsys.readouterr().err == f"gevsim: error: {out}: no space left on device\n"
+    assert not out.exists() and leftovers(tmp_path) == []
