@@ -92,6 +92,17 @@ class PhotoreceptorParams(FromTable):
 
 
 
+#: Upper bounds of noise parameters, far beyond any pixel (a preset's 1e300 gave inf or NaN signals after the
+#: render): noise voltages of 1 V (a photoreceptor swings a few hundred mV), amplifier noise of 1e3 ln^2 Hz
+#: (fitted DAVIS346: 0.058) and a read-noise bandwidth of 1 GHz.
+MAX_NOISE_V = 1.0
+MAX_AMPLIFIER_NOISE_LN2_HZ = 1e3
+MAX_BANDWIDTH_HZ = 1e9
+#: The longest readout latency (and its jitter): 1 s, beyond any arbiter (us to ms); 1e300 s overflowed the
+#: int64 microsecond timestamps.
+MAX_LATENCY_S = 1.0
+
+
 #: The largest DSNU (lognormal sigma of the dark current). The lognormal keeps its mean at ``dark_current_a``, so
 #: its median is exp(-sigma^2 / 2) of it: 1 % at sigma = 3, a 20-fold spread per sigma, far beyond measured DSNU
 #: (tens of %). Above it pixels' dark currents underflow to 0 (sigma = 1000 did: ln of 0 in black pixels).
@@ -150,18 +161,18 @@ class NoiseParams(FromTable):
             raise FieldError("feedback_shot_noise",
                              f"{n}.feedback_shot_noise must be true or false, got {self.feedback_shot_noise!r}")
         real(self.dark_current_doubling_k, "dark_current_doubling_k", low=0, low_open=True, allow_inf=True)
-        real(self.dc_offset_v, "dc_offset_v", low=0)
-        real(self.amplifier_noise_ln2_hz, "amplifier_noise_ln2_hz", low=0)
+        real(self.dc_offset_v, "dc_offset_v", low=0, high=MAX_NOISE_V)
+        real(self.amplifier_noise_ln2_hz, "amplifier_noise_ln2_hz", low=0, high=MAX_AMPLIFIER_NOISE_LN2_HZ)
         if not isinstance(self.shot_noise, bool):
             raise FieldError("shot_noise", f"{n}.shot_noise must be true or false, got {self.shot_noise!r}")
         for name in ("read_noise_v", "dark_current_a", "dark_current_spread", "flicker_noise_v"):
-            real(getattr(self, name), name, low=0)
+            real(getattr(self, name), name, low=0, high=MAX_NOISE_V if name.endswith("_v") else None)
         if self.dark_current_spread > MAX_DARK_CURRENT_SPREAD:
             raise FieldError("dark_current_spread", f"dark_current_spread = {self.dark_current_spread!r} is above "
                              f"{MAX_DARK_CURRENT_SPREAD:g}: a lognormal that wide has its median under 1 % of the mean "
                              "dark current, and dark pixels' currents underflow to 0 A")
         real(self.prnu, "prnu", low=0, high=0.5)
-        real(self.read_noise_bandwidth_hz, "read_noise_bandwidth_hz", low=0, low_open=True)
+        real(self.read_noise_bandwidth_hz, "read_noise_bandwidth_hz", low=0, low_open=True, high=MAX_BANDWIDTH_HZ)
         real(self.flicker_noise_low_hz, "flicker_noise_low_hz", low=0, low_open=True)
         real(self.flicker_noise_high_hz, "flicker_noise_high_hz", low=0, low_open=True)
         if self.flicker_noise_high_hz <= self.flicker_noise_low_hz:
@@ -262,7 +273,7 @@ class ReadoutParams(FromTable):
         real(self.anti_flicker_tolerance, "anti_flicker_tolerance", low=0, low_open=True, high=1.0)
         real(self.rate_controller_eps, "rate_controller_eps", low=0, low_open=True, allow_inf=True)
         real(self.rate_controller_period_s, "rate_controller_period_s", low=0, low_open=True)
-        real(self.latency_s, "latency_s", low=0)
-        real(self.latency_jitter_s, "latency_jitter_s", low=0)
+        real(self.latency_s, "latency_s", low=0, high=MAX_LATENCY_S)
+        real(self.latency_jitter_s, "latency_jitter_s", low=0, high=MAX_LATENCY_S)
         real(self.max_rate_eps, "max_rate_eps", low=0, low_open=True, allow_inf=True)
         real(self.max_delay_s, "max_delay_s", low=0, allow_inf=True)
