@@ -180,7 +180,7 @@ def test_evreal_folders_import_back(reference):
 @pytest.mark.parametrize("changes, key, text", [
     ({"sequence": 3}, "dataset.sequence", "did you mean 'sequences'"),
     ({"scenes": []}, "dataset.scenes", "non-empty list"),
-    ({"sequences": -2}, "dataset.sequences", "sequences must be a positive integer, got -2"),
+    ({"sequences": -2}, "dataset.sequences", "sequences must be an integer in 1..1000000, got -2"),
     ({"scenes": ["ofice"]}, "dataset.scenes", "did you mean 'office'"),
     ({"randomize": {"waveforms": ["pwn"]}}, "dataset.randomize.waveforms", "did you mean 'pwm'"),
     ({"randomize": {"duty": [0.5, 1.5]}}, "dataset.randomize.duty", "0 < low <= high <= 1.0"),
