@@ -59,7 +59,7 @@ def real(value: Any, name: str, *, low: float | None = None, high: float | None 
         value = value.item()
     if not _is_real(value):
         raise FieldTypeError(name, f"{name} must be a real number, got {value!r}")
-    if isinstance(value, int) and abs(value) > 2**53:  # compiled kernels take int64: 2**63 overflowed there
+    if isinstance(value, int) and abs(value) > 1 << 53:  # compiled kernels take int64: 2^63 overflowed there
         raise FieldError(name, f"{name} must be {wanted}, got the integer {value!r} (beyond 2^53; write a float)")
     x = float(value)
     if math.isnan(x) or (math.isinf(x) and not allow_inf):

@@ -22,6 +22,10 @@ if TYPE_CHECKING:  # numpy is imported where it is used
 
 #: Temperature (K) at which presets state dark current and leak rates (27 degC).
 REFERENCE_TEMPERATURE_K = 300.0
+#: The hottest sensor: 500 K, above any silicon chip's rating (~400 K); 1e300 K overflowed the leakage to NaN.
+MAX_TEMPERATURE_K = 500.0
+#: The widest bandwidth of a pixel circuit's pole (1 GHz); 1e300 Hz gave inf and NaN after the render.
+MAX_BANDWIDTH_HZ = 1e9
 
 
 def thermal_factor(temperature_k: float, doubling_k: float) -> float:
@@ -67,9 +71,9 @@ class PhotoreceptorParams(FromTable):
         real(self.cutoff_ref_photocurrent_a, "cutoff_ref_photocurrent_a", low=0, low_open=True)
         real(self.max_cutoff_hz, "max_cutoff_hz", low=0, low_open=True, allow_inf=True)
         if self.second_pole_hz is not None:
-            real(self.second_pole_hz, "second_pole_hz", low=0, low_open=True)
+            real(self.second_pole_hz, "second_pole_hz", low=0, low_open=True, high=MAX_BANDWIDTH_HZ)
         real(self.slope_factor, "slope_factor", low=0, low_open=True)
-        real(self.temperature_k, "temperature_k", low=0, low_open=True)
+        real(self.temperature_k, "temperature_k", low=0, low_open=True, high=MAX_TEMPERATURE_K)
         real(self.v0_v, "v0_v")
 
     @property
@@ -94,10 +98,9 @@ class PhotoreceptorParams(FromTable):
 
 #: Upper bounds of noise parameters, far beyond any pixel (a preset's 1e300 gave inf or NaN signals after the
 #: render): noise voltages of 1 V (a photoreceptor swings a few hundred mV), amplifier noise of 1e3 ln^2 Hz
-#: (fitted DAVIS346: 0.058) and a read-noise bandwidth of 1 GHz.
+#: (fitted DAVIS346: 0.058) and a read-noise bandwidth of :data:`MAX_BANDWIDTH_HZ`.
 MAX_NOISE_V = 1.0
 MAX_AMPLIFIER_NOISE_LN2_HZ = 1e3
-MAX_BANDWIDTH_HZ = 1e9
 #: The longest readout latency (and its jitter): 1 s, beyond any arbiter (us to ms); 1e300 s overflowed the
 #: int64 microsecond timestamps.
 MAX_LATENCY_S = 1.0

@@ -25,6 +25,9 @@ SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_
 #: black pixels' photoreceptors have cutoffs of picohertz and their noise no finite settled value (davis346 at
 #: dark_current_a = 1e-26 A gave NaN after the render).
 MIN_DARK_ELECTRONS_PER_S = 1.0
+#: The brightest reference illuminance: pi x 1e10 lux, as bright as a scene manifest's light may be
+#: (gevsim.render.manifest_checks.MAX_LIMITS); 1e300 lux gave an infinite signal after the render.
+MAX_CUTOFF_REF_LUX = 3.1415926535897932e10
 
 
 @dataclass(frozen=True)
@@ -114,11 +117,12 @@ def check_dark_current(photoreceptor: PhotoreceptorParams, noise: NoiseParams, *
                                                     f"{noise.dark_current_doubling_k:g} K below 300 K)")
         raise ConfigError(f"the dark current is {dark:g} A{at}; it must be > 0: the photoreceptor's response is "
                           "ln(I_ph + I_dark), and a black pixel has I_ph = 0", source=source, key=key)
-    import math
-
     from scipy.constants import elementary_charge
 
-    median = dark * math.exp(-0.5 * noise.dark_current_spread ** 2)  # the lognormal DSNU keeps the mean
+    from gevsim._portable import exp_scalar
+
+    spread = noise.dark_current_spread
+    median = dark * float(exp_scalar(-0.5 * spread * spread))  # the lognormal DSNU keeps the mean
     if median < elementary_charge * MIN_DARK_ELECTRONS_PER_S:
         raise ConfigError(f"the median pixel's dark current is {median:.3g} A ({median / elementary_charge:.3g} "
                           f"electrons/s) at temperature_k = {photoreceptor.temperature_k:g}; it must be at least "
@@ -168,8 +172,8 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
     sensor = dict(raw["sensor"])
     check_keys(sensor, SENSOR_KEYS, source=src, where="sensor")
     r = TomlReader(src)
-    for key in ("width", "height"):
-        r.number(sensor, key, "sensor", positive=True, integer=True)
+    for key in ("width", "height"):  # at most 1e5 px a side, beyond any sensor (IMX636: 1280 x 720)
+        r.number(sensor, key, "sensor", positive=True, integer=True, maximum=100_000)
     for key, upper in (("pixel_pitch_m", 1e-3), ("fill_factor", 1.0)):
         r.number(sensor, key, "sensor", positive=True, maximum=upper)
     from gevsim.optics import QE_CURVES
@@ -187,7 +191,8 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         if "cutoff_ref_photocurrent_a" in receptor:
             raise ConfigError("give cutoff_ref_lux or cutoff_ref_photocurrent_a, not both", source=src,
                               key="photoreceptor.cutoff_ref_lux")
-        r.number(raw["photoreceptor"], "cutoff_ref_lux", "photoreceptor", positive=True)
+        r.number(raw["photoreceptor"], "cutoff_ref_lux", "photoreceptor", positive=True,
+                 maximum=MAX_CUTOFF_REF_LUX)
         receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
             lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
             spectrum=spectrum, source=src, qe=QE_CURVES[qe_name])
