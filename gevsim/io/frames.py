@@ -73,7 +73,7 @@ def _check_times(t: np.ndarray, n: int, *, source: str) -> np.ndarray:
 
 
 #: The latest frame time: event files count whole microseconds in int64 (2^62 us leaves headroom).
-_LATEST_S = 2.0**62 / 1e6
+_LATEST_S = float(1 << 62) / 1e6
 
 
 def _in_range(t: np.ndarray, *, source: str, key: str | None = None) -> np.ndarray:
