@@ -111,9 +111,9 @@ def not_portable(path: Path, name: str | None = None) -> list[str]:
     for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
         where = f"{name or module_name(path)}:{getattr(node, 'lineno', '?')}"
         if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name):
-            lib, name = node.value.id, node.attr
-            if (lib == "np" and name in NOT_PORTABLE_NUMPY) or (lib == "math" and name in NOT_PORTABLE_MATH):
-                found.append(f"{where} {lib}.{name}")
+            lib, attr = node.value.id, node.attr
+            if (lib == "np" and attr in NOT_PORTABLE_NUMPY) or (lib == "math" and attr in NOT_PORTABLE_MATH):
+                found.append(f"{where} {lib}.{attr}")
         if isinstance(node, ast.Attribute) and node.attr in NOT_PORTABLE_RANDOM and isinstance(node.value, ast.Name) \
                 and "rng" in node.value.id:
             found.append(f"{where} {node.value.id}.{node.attr}")
