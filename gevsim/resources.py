@@ -14,9 +14,13 @@ import math
 import os
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from gevsim import _resources
 from gevsim.errors import ConfigError
+
+if TYPE_CHECKING:
+    from gevsim.emulation.config import EmulationConfig
 
 __all__ = ["MAX_SEQUENCES", "MAX_SPP", "MAX_STUDY_RUNS", "at_most", "check_emulation", "check_export",
            "check_frame_memory", "check_frame_times", "check_render_frames", "check_writable", "fits_disk",
@@ -82,7 +86,7 @@ def check_writable(out: str | os.PathLike, *, inside: bool = False) -> None:
             from None
 
 
-def check_emulation(config, *, width: int, height: int, duration_s: float) -> None:
+def check_emulation(config: EmulationConfig, *, width: int, height: int, duration_s: float) -> None:
     """Memory of an emulation of ``config`` (an EmulationConfig) at ``width`` x ``height`` px: one chunk
     (``chunk_steps``) and the whole run's time grid and millisecond index (the duration and ``step_s``)."""
     steps = duration_s / config.step_s
