@@ -6,6 +6,11 @@ it collects them (issue 24, defect #9). A file that will be deleted anyway needs
 its descriptor is first pointed at the null device: the final flush succeeds (into nothing) and HDF5
 frees every identifier cleanly. The staged file is then removed by its owner. A file being kept is
 flushed before it is closed (:func:`close_h5`), so that a full disk fails while the file is still whole.
+
+Even so, HDF5 writes cached chunks and metadata whenever it likes (also while h5py frees objects, where a
+failure is not even raised), and a study's workers fill one disk together: a run refused at that point
+could still crash. So every write is first checked against the free space (:func:`ensure_room`), and a
+file refuses new data while less than :data:`HEADROOM_BYTES` would stay free, before HDF5 sees any of it.
 """
 
 from __future__ import annotations
@@ -15,6 +20,20 @@ import errno
 import os
 
 import h5py
+
+from gevsim._resources import free_disk_bytes
+
+#: Free space an event file leaves on its disk: HDF5's metadata and chunk caches are written later, when
+#: HDF5 decides, and must still fit (the default chunk cache is 1 MiB per dataset; a file has a few).
+HEADROOM_BYTES = 8 * 2**20
+
+
+def ensure_room(path: str | os.PathLike, nbytes: int) -> None:
+    """Raise ``OSError(ENOSPC)`` naming ``path`` unless ``nbytes`` more (uncompressed, so an upper bound)
+    plus :data:`HEADROOM_BYTES` fit on its disk; nothing where the free space is unknown."""
+    free = free_disk_bytes(path)
+    if free is not None and free < int(nbytes) + HEADROOM_BYTES:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), os.fspath(path))
 
 
 def disk_error(exc: BaseException, path: str | os.PathLike | None) -> OSError | None:

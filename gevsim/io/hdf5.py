@@ -56,7 +56,7 @@ import h5py
 import numpy as np
 
 from gevsim import __version__
-from gevsim.io._h5discard import close_h5, discard_h5
+from gevsim.io._h5discard import close_h5, discard_h5, ensure_room
 from gevsim.io._hdf5_stream import (  # noqa: F401 (re-exported: gevsim.io.hdf5.CHUNK, ...)
     CHUNK,
     FIELD_ATTRS,
@@ -164,6 +164,7 @@ class EventWriter:
     def _write(self, state: _Stream, events: np.ndarray, ms: np.ndarray) -> None:
         """Hand validated events to the writer thread (a copy: the caller may reuse its array), or
         write them here without one."""
+        ensure_room(self.path, events.nbytes)  # before HDF5 sees it: a full disk inside HDF5 can crash h5py
         if self._background and self._worker is None:
             self._worker = _Worker(QUEUE_CHUNKS)
         if self._worker is not None:
@@ -250,6 +251,7 @@ class EventWriter:
         n = images.shape[0]
         if n and int(t_us) <= int(t[n - 1]):
             raise ValueError(f"frame {name!r}: t={int(t_us)} us is not after the previous frame's t={int(t[n - 1])} us")
+        ensure_room(self.path, image.nbytes)
         images.resize((n + 1, *image.shape))
         t.resize((n + 1,))
         images[n], t[n] = image, int(t_us)
@@ -264,6 +266,7 @@ class EventWriter:
         if path_in_file.strip("/") in ("ms_to_idx", "t_offset"):
             raise ValueError(f"{path_in_file!r} at the root is reserved for the DSEC layout of the brightness stream")
         array = np.asarray(array)
+        ensure_room(self.path, array.nbytes)
         opts = _filters(self._filters, array.dtype) if array.ndim and array.size else {}
         self._file.create_dataset(path_in_file, data=array, **opts)
         _describe(self._file[path_in_file], units, meaning)
