@@ -29,6 +29,16 @@ def test_anything_else_is_a_traceback(monkeypatch, exc):
         cli.main(["info"])
 
 
+def test_a_dead_worker_is_one_line_with_exit_1(monkeypatch, capsys):
+    # A pool whose worker was killed (out of memory, a signal) raised BrokenProcessPool through a traceback.
+    from concurrent.futures.process import BrokenProcessPool
+
+    monkeypatch.setattr(cli, "cmd_info", _failing(BrokenProcessPool("A process in the pool was terminated")))
+    assert cli.main(["info"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("gevsim: error: a worker process died (A process in the pool") and err.count("\n") == 1
+
+
 def test_verbose_shows_the_traceback_of_input_errors_too(monkeypatch):
     monkeypatch.setattr(cli, "cmd_info", _failing(ConfigError("bad value")))
     with pytest.raises(ConfigError):

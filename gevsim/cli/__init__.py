@@ -14,6 +14,7 @@ import logging
 import os
 import re
 import sys
+from concurrent.futures import BrokenExecutor
 from pathlib import Path
 
 from gevsim.cli._common import _progress
@@ -47,6 +48,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("gevsim: interrupted", file=sys.stderr)
         return 130
+    except BrokenExecutor as exc:  # a worker was killed (out of memory, a signal): not bad input, but no traceback
+        if args.verbose:
+            raise
+        print(f"gevsim: error: a worker process died ({exc}); finished runs are kept, the same command resumes",
+              file=sys.stderr)
+        return 1
     except (OSError, RuntimeError) as exc:  # a full disk, a quota, a read-only file system: one line
         error = exc
         if isinstance(exc, RuntimeError):  # h5py's and OpenEXR's, from a worker too: the errno is in the text
