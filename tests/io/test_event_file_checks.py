@@ -17,16 +17,6 @@ DATA = Path(__file__).parents[1] / "data"
 G = "gradient_events"
 
 
-@pytest.fixture(scope="module")
-def good(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("checks")
-    cfg = tmp / "em.toml"
-    cfg.write_text(f'[emulation]\nscene = "{DATA / "card.toml"}"\nsensor = "davis346"\nduration_s = 0.004\n'
-                   'step_s = 5e-5\nemulators = ["dvs", "gradient"]\n[render]\nwidth = 24\nheight = 18\nspp = 2\n')
-    assert cli.main(["emulate", str(cfg), "--out", str(tmp / "good.h5"), "-q", "--cache", str(tmp / "c")]) == 0
-    return tmp / "good.h5"
-
-
 def _values(name, edit):
     def apply(f):
         f[name][...] = edit(f[name][...])

@@ -9,7 +9,6 @@ import shutil
 from pathlib import Path
 
 import pytest
-from test_untrusted_events import good  # noqa: F401  (a 24x18 emulation file, made once per module)
 
 from gevsim import cli
 from gevsim.errors import ConfigError
@@ -184,7 +183,7 @@ def test_render_and_validate_refuse_before_any_work(tmp_path, capsys):
     assert not (tmp_path / "v").exists()
 
 
-def test_reconstruct_refuses_a_render_folder_and_the_folder_holding_its_input(good, tmp_path, capsys):  # noqa: F811
+def test_reconstruct_refuses_a_render_folder_and_the_folder_holding_its_input(good, tmp_path, capsys):
     rend = _render_folder(tmp_path / "rend")
     before = _tree(rend)
     _refused(["reconstruct", str(good), "--method", "dct", "--out", str(rend), "-q"], capsys,
@@ -198,7 +197,7 @@ def test_reconstruct_refuses_a_render_folder_and_the_folder_holding_its_input(go
     assert sorted(os.listdir(inrec)) == ["good.h5"]
 
 
-def test_export_refuses_its_input_a_folder_and_a_foreign_file(good, tmp_path, capsys):  # noqa: F811
+def test_export_refuses_its_input_a_folder_and_a_foreign_file(good, tmp_path, capsys):
     """#14: `export in.h5 --out in.h5` replaced the emulation file with AEDAT4; --out DIR was a traceback."""
     pytest.importorskip("dv_processing")
     src = tmp_path / "in.h5"
@@ -219,7 +218,7 @@ def test_export_refuses_its_input_a_folder_and_a_foreign_file(good, tmp_path, ca
     assert sorted(os.listdir(tmp_path)) == ["in.h5", "notes.aedat4", "x.aedat4", "xdir"]
 
 
-def test_emulate_replaces_only_an_emulation_file(good, tmp_path, capsys):  # noqa: F811
+def test_emulate_replaces_only_an_emulation_file(good, tmp_path, capsys):
     foreign = tmp_path / "notes.h5"
     foreign.write_text("precious")
     _refused(["emulate", str(DATA / "card.toml"), "--out", str(foreign), "-q"], capsys,

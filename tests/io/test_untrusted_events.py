@@ -17,16 +17,6 @@ from gevsim.io import EventReader
 DATA = Path(__file__).parents[1] / "data"
 
 
-@pytest.fixture(scope="module")
-def good(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("untrusted")
-    cfg = tmp / "em.toml"
-    cfg.write_text(f'[emulation]\nscene = "{DATA / "card.toml"}"\nsensor = "davis346"\nduration_s = 0.004\n'
-                   'step_s = 5e-5\nemulators = ["dvs", "gradient"]\n[render]\nwidth = 24\nheight = 18\nspp = 2\n')
-    assert cli.main(["emulate", str(cfg), "--out", str(tmp / "good.h5"), "-q", "--cache", str(tmp / "c")]) == 0
-    return tmp / "good.h5"
-
-
 def _crafted(good, tmp_path, dataset, edit):
     path = tmp_path / "crafted.h5"
     path.write_bytes(good.read_bytes())
