@@ -22,12 +22,16 @@ from gevsim.errors import ConfigError
 if TYPE_CHECKING:
     from gevsim.emulation.config import EmulationConfig
 
-__all__ = ["MAX_SEQUENCES", "MAX_SPP", "MAX_STUDY_RUNS", "at_most", "check_emulation", "check_export",
+__all__ = ["MAX_REPEATS", "MAX_SEQUENCES", "MAX_SPP", "MAX_STUDY_RUNS", "at_most", "check_emulation", "check_export",
            "check_frame_memory", "check_frame_times", "check_render_frames", "check_writable", "fits_disk",
            "fits_memory"]
 
 #: The most runs one study sweeps (the product of its axes' lengths); each is an emulation of seconds.
 MAX_STUDY_RUNS = 10_000
+#: The most noise seeds a study repeats each run with: 1000 seeds already give a 95 % interval about 3 %
+#: of the between-seed spread wide (1.96 / sqrt(1000) ~ 0.06 spreads, half-width 0.03), far narrower than any
+#: other knob a study sweeps.
+MAX_REPEATS = 1000
 #: The most sequences one dataset config makes (shard names ``seq_NNNNN`` count them).
 MAX_SEQUENCES = 1_000_000
 #: The most samples per pixel a render takes (``spp``, ``max_spp``): 64 times the default ``max_spp``.

@@ -104,6 +104,15 @@ def test_study_duration_is_refused_before_its_folder_is_made(tmp_path, capsys):
     assert not (tmp_path / "s").exists()
 
 
+def test_study_repeats_are_capped_in_the_config_and_on_the_command_line(tmp_path, capsys):
+    path = study(tmp_path, 'waveform = ["dc"]')
+    err = refused(tmp_path, capsys, ["study", str(path), "--out", str(tmp_path / "s"), "--repeats", "1001"])
+    assert "gevsim: error: --repeats: the number of repeats is 1001; at most 1000 are allowed" in err
+    path.write_text(path.read_text().replace("[study]\n", "[study]\nrepeats = 1001\n"))
+    err = refused(tmp_path, capsys, ["study", str(path), "--out", str(tmp_path / "s")])
+    assert "study.toml: study.repeats:" in err and "1001" in err and not (tmp_path / "s").exists()
+
+
 def frame_folder(tmp_path, n: int, size: tuple[int, int], times: list[float]) -> Path:
     import imageio.v3 as iio
 

@@ -21,6 +21,9 @@ def cmd_study(args: argparse.Namespace) -> int:
     study = load_study(args.config)
     base = dict(study.base)
     if args.repeats is not None:
+        from gevsim.resources import MAX_REPEATS, at_most
+
+        at_most(args.repeats, MAX_REPEATS, what="the number of repeats", source=None, key="--repeats")
         base["repeats"] = args.repeats
     if _render_overrides(args):
         base["render"] = {**base["render"], **_render_overrides(args)}

@@ -75,7 +75,7 @@ from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.illumination.base import MAX_FREQUENCY_HZ
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
-from gevsim.resources import MAX_STUDY_RUNS, at_most
+from gevsim.resources import MAX_REPEATS, MAX_STUDY_RUNS, at_most
 from gevsim.timebase import TimeGrid
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
@@ -199,7 +199,8 @@ def load_study(path: str | Path) -> Study:
             "flicker_group": st["flicker_group"], "seed": r.number(st, "seed", "study", 0, minimum=0, integer=True),
             **dataclasses.asdict(grid),
             "methods": list(st.get("methods", ["dct", "direct"])), "render": dict(st.get("render", {})),
-            "repeats": r.number(st, "repeats", "study", DEFAULT_REPEATS, positive=True, integer=True)}
+            "repeats": r.number(st, "repeats", "study", DEFAULT_REPEATS, positive=True, integer=True,
+                                maximum=MAX_REPEATS)}
     try:  # the time grid's own checks (whole steps, at least one clock tick), before any work
         TimeGrid(**{k: base[k] for k in ("duration_s", "step_s", "chunk_steps", "frame_rate_hz")}).steps(
             base["duration_s"])
