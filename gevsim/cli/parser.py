@@ -40,7 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("render", help="render a scene's light-group basis images (and an irradiance sequence)")
     r.add_argument("scene", help="a built-in scene name (see `gevsim scenes`) or a manifest .toml")
-    r.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    r.add_argument("--out", required=True, help="output folder: missing, empty or an earlier render (replaced "
+                   "atomically); anything else is refused")
     r.add_argument("--frames", type=_positive, metavar="RATE", help="also write the mixed irradiance at RATE frames/s")
     r.add_argument("--exposure", type=_positive, metavar="S",
                    help="average each frame over S seconds (default: instant)")
@@ -62,7 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("emulate", help="emulate events: a scene (CONFIG.toml) or a frame sequence")
     e.add_argument("config", nargs="?", help="emulation config (keys: docs/config.md)")
-    e.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    e.add_argument("--out", required=True, help="output HDF5 file (written atomically; replaces only an earlier "
+                   "gevsim event file)")
     e.add_argument("--frames", metavar="DIR", help="frame mode: a folder of images (+ timestamps.txt or --fps)")
     e.add_argument("--evreal", metavar="DIR", help="frame mode: an EVREAL sequence folder")
     e.add_argument("--video", metavar="FILE", help="frame mode: a video file (needs imageio)")
@@ -87,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="reconstruction methods by full name, as listed in gevsim.evaluation.METHODS: gradient "
                         "events dct, sor and dct_rc, sor_rc (resolution-compressed stream); brightness events "
                         "direct, high_pass, complementary; repeat or comma-separate")
-    c.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    c.add_argument("--out", required=True, help="output folder: missing, empty or an earlier reconstruction "
+                   "(replaced atomically); anything else is refused")
     c.add_argument("--mean", default="ground-truth", help="level: ground-truth (papers' protocol) or photodiode")
     c.add_argument("--c", type=_positive, default=3.6, help="Poisson scale c (paper: 3.6 for three thresholds)")
     c.add_argument("--contrast", type=_positive, help="contrast step of a brightness event (ln units; default: "
@@ -101,12 +104,14 @@ def build_parser() -> argparse.ArgumentParser:
     x.add_argument("file", help="an emulation file (.h5)")
     x.add_argument("--format", choices=("aedat4",), required=True,
                    help="aedat4: iniVation DV (gradient axes as <stream>_x/_y event streams)")
-    x.add_argument("--out", required=True, help="output file (written atomically)")
+    x.add_argument("--out", required=True, help="output file (written atomically; replaces only an earlier gevsim "
+                   "export, never the input)")
     x.add_argument("--stream", action="append", metavar="NAME", help="streams to export (default: all)")
 
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
     d.add_argument("config", help="dataset config (keys: docs/config.md)")
-    d.add_argument("--out", required=True, help="output folder; finished sequences in it are kept")
+    d.add_argument("--out", required=True, help="output folder (missing, empty or an earlier dataset); finished "
+                   "sequences in it are kept")
     _executor_options(d)
     _run_overrides(d)
     d.add_argument("--cache", metavar="DIR", help="basis image cache (shared by the workers)")
@@ -117,7 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "writes a report with plots and a pass/fail table")
     v.add_argument("--sensor", action="append", help="a preset name or TOML file (repeatable; default: every shipped "
                    "preset but 'ideal')")
-    v.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    v.add_argument("--out", required=True, help="output folder: missing, empty or an earlier validation report "
+                   "(replaced atomically)")
     v.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     v.add_argument("--quick", action="store_true",
                    help="smaller, shorter runs (16x16 px, 3 s per point): wider intervals")
@@ -125,7 +131,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("study", help="run (or resume) a study: sweeps with repeats and counterfactuals, intervals, "
                                      "plots and a report")
     s.add_argument("config", help="a study config (experiments/*.toml; keys: docs/config.md)")
-    s.add_argument("--out", required=True, help="study folder (runs/ inside makes reruns resume)")
+    s.add_argument("--out", required=True, help="study folder: missing, empty or an earlier study (runs/ inside "
+                   "makes reruns resume)")
     s.add_argument("--repeats", type=_positive_int, metavar="R",
                    help="noise seeds per run (default: [study] repeats); more repeats reuse the finished ones")
     _executor_options(s)
