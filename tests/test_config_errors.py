@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from gevsim import cli
+from gevsim.errors import ConfigError
 
 DATA = Path(__file__).parent / "data"
 PRESET = Path(__file__).parents[1] / "noise" / "davis346.toml"
@@ -165,12 +166,18 @@ def test_a_builder_that_rejects_its_options_is_one_line(tmp_path, capsys, scene)
             "(options {'poster': 'nope'})") in err
 
 
-def test_a_builder_bug_of_another_kind_keeps_its_traceback(tmp_path, scene):
-    (tmp_path / "buggy.py").write_text("def build(options):\n    return 1 / 0\n")
+def test_any_builder_bug_is_one_line_and_verbose_shows_its_traceback(tmp_path, scene, capsys):
+    # A builder is the user's code: an IndexError or ZeroDivisionError in it was a gevsim traceback.
+    (tmp_path / "buggy.py").write_text("def build(options):\n    return [][1] if options else 1 / 0\n")
     bad = tmp_path / "bad.toml"
     bad.write_text(scene.read_text().replace('builder = "card.py"', 'builder = "buggy.py"'))
-    with pytest.raises(ZeroDivisionError):
-        cli.main(["render", str(bad), "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c"), "-q"])
+    argv = ["render", str(bad), "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c"), "-q"]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bad.toml: scene.builder: buggy.py: build(options) raised ZeroDivisionError" in err
+    with pytest.raises(ConfigError) as raised:
+        cli.main(["-v", *argv])
+    assert isinstance(raised.value.__cause__, ZeroDivisionError)
 
 
 def test_a_non_finite_render_is_refused_before_it_is_cached(tmp_path, capsys, scene, monkeypatch):

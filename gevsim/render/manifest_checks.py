@@ -56,15 +56,15 @@ def check_up(origin: Any, target: Any, up: Any, r: TomlReader, where: str) -> No
 
 
 def call_build(build: Callable[[dict], Any], manifest: Any, builder: Any) -> Any:
-    """``build(options)`` of a user's scene builder. The ValueError, TypeError or KeyError with which a
-    builder refuses its options (or fails on its own) is a ConfigError naming the manifest and the builder,
-    chained to the original (``-v`` shows its traceback); gevsim's own errors pass unchanged, and any other
-    exception stays a traceback."""
+    """``build(options)`` of a user's scene builder. Whatever exception a builder raises, refusing its options
+    or failing on its own (a builder is the user's code, like a config), is a ConfigError naming the manifest,
+    the builder and the exception, chained to the original (``-v`` shows its traceback); gevsim's own errors
+    pass unchanged."""
     try:
         return build(dict(manifest.options))
     except GevsimError:
         raise
-    except (ValueError, TypeError, KeyError) as exc:
+    except Exception as exc:
         options = f" (options {manifest.options})" if manifest.options else ""
         raise ConfigError(f"{builder.name}: build(options) raised {type(exc).__name__}: {one_line(exc)}{options}",
                           source=manifest.source, key="scene.builder") from exc
