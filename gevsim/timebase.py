@@ -16,6 +16,9 @@ from gevsim.config import FromTable
 #: The shortest duration an emulation may have: event files count time in whole microseconds, so a
 #: shorter one has no tick to put an event on and no length to give a rate.
 MIN_DURATION_S = 1e-6
+#: The longest recording an event file holds: one day (its ``t_end_us`` is checked against this when it is
+#: read, :mod:`gevsim.io.checks`), so emulations and frame sequences are refused beyond it before they run.
+MAX_DURATION_S = 86_400.0
 #: The most ground-truth frames one emulation writes (each is two float32 images in the file).
 MAX_FRAMES = 1_000_000
 
@@ -85,6 +88,9 @@ def _check_duration(duration_s: float) -> None:
     if duration_s < MIN_DURATION_S:
         raise FieldError("duration_s", f"duration_s = {duration_s:g} is shorter than 1 us, the clock tick of event "
                                        "files (timestamps are whole microseconds)")
+    if duration_s > MAX_DURATION_S:
+        raise FieldError("duration_s", f"duration_s = {duration_s:g} is longer than {MAX_DURATION_S:g} s (a day), "
+                                       "the longest recording an event file holds")
 
 
 def check_chunk(values: ArrayLike, t_s: ArrayLike, *, shape: Sequence[int], name: str,

@@ -280,8 +280,11 @@ def frames(tmp_path) -> Path:
                                                                           "got -0.5"),
     (lambda f: (f / "timestamps.txt").write_bytes(b"\xff\xfe\x00"), [], "timestamps.txt: not UTF-8 text: byte 0"),
     (lambda f: None, ["--fps", "1e-300"], "frames: fps: frame 2 is at 2e+300 s, past the latest time"),
+    # a day and more: the file was written, then refused by every reader (its t_end_us past a day)
+    (lambda f: (f / "timestamps.txt").write_text("0\n0.01\n90000\n"), [], "timestamps.txt: frame 2 is at 9e+04 s, "
+                                                                           "past the latest time an event file holds"),
     (lambda f: (f / "f3.png").write_text("not an image"), ["--fps", "30"], "f3.png: cannot read the image"),
-], ids=["negative time", "binary timestamps", "tiny fps", "unreadable image"])
+], ids=["negative time", "binary timestamps", "tiny fps", "over a day", "unreadable image"])
 def test_frame_mode_input_is_one_line(tmp_path, capsys, frames, write, flags, text):
     write(frames)
     err = one_error(capsys, ["emulate", "--frames", str(frames), "--out", str(tmp_path / "o.h5"), *flags])
@@ -295,6 +298,12 @@ def test_dataset_duration_too_short_is_one_line(tmp_path, capsys, scene):
     path = dataset(tmp_path, scene)
     err = one_error(capsys, run_config("dataset", path, tmp_path) + ["--duration", "1e-9"])
     assert "--duration: duration_s = 1e-09 is shorter than 1 us" in err
+
+
+def test_a_duration_longer_than_an_event_file_holds_is_one_line(tmp_path, capsys, scene):
+    path = dataset(tmp_path, scene)
+    err = one_error(capsys, run_config("dataset", path, tmp_path) + ["--duration", "90000"])
+    assert "--duration: duration_s = 90000 is longer than 86400 s (a day)" in err
 
 
 def test_an_unreachable_dask_scheduler_is_one_line(tmp_path, capsys, scene, monkeypatch):

@@ -29,6 +29,7 @@ import numpy as np
 
 from gevsim.errors import ConfigError
 from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE, check_events
+from gevsim.timebase import MAX_DURATION_S
 
 __all__ = ["BLOCK", "BOOL_ATTR", "MAX_SIZE_PX", "MAX_T_END_US", "STANDARD", "bounded_int", "check_stream",
            "read", "read_frames", "text"]
@@ -39,8 +40,9 @@ BOOL_ATTR = "numpy_dtype"
 STANDARD = {"events": BRIGHTNESS_DTYPE, "gradient_events": GRADIENT_DTYPE}
 #: Largest width or height: x and y are int16.
 MAX_SIZE_PX = 2**15
-#: Longest recording read, one day (ms_to_idx, 8 bytes a millisecond, is read whole: 0.7 GB).
-MAX_T_END_US = 86_400 * 10**6
+#: Longest recording read, one day, as long as gevsim writes (:data:`gevsim.timebase.MAX_DURATION_S`;
+#: ms_to_idx, 8 bytes a millisecond, is read whole: 0.7 GB).
+MAX_T_END_US = int(MAX_DURATION_S) * 10**6
 #: Events per block of the stream check.
 BLOCK = 2**20
 

@@ -16,6 +16,7 @@ from gevsim._validate import FieldError, increasing, real
 from gevsim.errors import ConfigError, MissingExtraError, one_line
 from gevsim.io.evreal import import_evreal
 from gevsim.resources import check_frame_memory
+from gevsim.timebase import MAX_DURATION_S
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +73,8 @@ def _check_times(t: np.ndarray, n: int, *, source: str) -> np.ndarray:
         raise ConfigError(str(err), source=source) from None
 
 
-#: The latest frame time: event files count whole microseconds in int64 (2^62 us leaves headroom).
-_LATEST_S = float(1 << 62) / 1e6
+#: The latest frame time: the longest recording an event file holds (a day).
+_LATEST_S = MAX_DURATION_S
 
 
 def _in_range(t: np.ndarray, *, source: str, key: str | None = None) -> np.ndarray:
