@@ -15,6 +15,26 @@ def physical_memory_bytes() -> int | None:
         return None
 
 
+def address_space_limit_bytes() -> int | None:
+    """This process's address-space limit (``ulimit -v``, RLIMIT_AS) in bytes; None where there is none."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, ValueError, OSError):
+        return None
+    return None if soft == resource.RLIM_INFINITY or soft < 0 else int(soft)
+
+
+def usable_memory() -> tuple[int | None, str]:
+    """The memory a request may take, and how to say where that bound comes from: installed memory, or the
+    process's ``ulimit -v`` where that is lower."""
+    have, limit = physical_memory_bytes(), address_space_limit_bytes()
+    if limit is not None and (have is None or limit < have):
+        return limit, "this process may use (ulimit -v)"
+    return have, "this machine has"
+
+
 def free_disk_bytes(path: str | os.PathLike) -> int | None:
     """Free bytes on the file system that holds ``path`` (its nearest existing parent); None if unknown."""
     p = Path(path).absolute()

@@ -52,9 +52,9 @@ AEDAT4_EVENT_BYTES = 16
 
 def fits_memory(need: float, *, what: str, source: str | None, key: str | None, hint: str = "") -> None:
     """Refuse ``need`` bytes of memory over this machine's installed memory."""
-    have = _resources.physical_memory_bytes()
+    have, phrase = _resources.usable_memory()
     if have is not None and need > have:
-        raise ConfigError(f"{what} need about {_resources.gib(need)} of memory; this machine has "
+        raise ConfigError(f"{what} need about {_resources.gib(need)} of memory; {phrase} "
                           f"{_resources.gib(have)}{hint}", source=source, key=key)
 
 

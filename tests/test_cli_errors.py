@@ -39,6 +39,26 @@ def test_a_dead_worker_is_one_line_with_exit_1(monkeypatch, capsys):
     assert err.startswith("gevsim: error: a worker process died (A process in the pool") and err.count("\n") == 1
 
 
+def test_running_out_of_memory_is_one_line(monkeypatch, capsys):
+    # numpy's _ArrayMemoryError under `ulimit -v` was a traceback (exit 1).
+    import numpy as np
+
+    monkeypatch.setattr(cli, "cmd_info", lambda args: np.empty(2**62, np.uint8))
+    assert cli.main(["info"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("gevsim: error: out of memory (Unable to allocate 4.00 EiB") and err.count("\n") == 1
+
+
+def test_memory_checks_honour_the_address_space_limit(monkeypatch):
+    from gevsim import _resources
+
+    monkeypatch.setattr(_resources, "physical_memory_bytes", lambda: 2**35)
+    monkeypatch.setattr(_resources, "address_space_limit_bytes", lambda: 2**30)
+    assert _resources.usable_memory() == (2**30, "this process may use (ulimit -v)")
+    monkeypatch.setattr(_resources, "address_space_limit_bytes", lambda: None)
+    assert _resources.usable_memory() == (2**35, "this machine has")
+
+
 def test_verbose_shows_the_traceback_of_input_errors_too(monkeypatch):
     monkeypatch.setattr(cli, "cmd_info", _failing(ConfigError("bad value")))
     with pytest.raises(ConfigError):

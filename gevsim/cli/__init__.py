@@ -24,7 +24,7 @@ from gevsim.cli.info import cmd_info, cmd_presets, cmd_scenes, cmd_validate
 from gevsim.cli.parser import build_parser
 from gevsim.cli.render import cmd_render
 from gevsim.cli.runs import cmd_dataset, cmd_study
-from gevsim.errors import GevsimError
+from gevsim.errors import GevsimError, one_line
 
 __all__ = ["build_parser", "main", "_progress", "cmd_dataset", "cmd_emulate", "cmd_export", "cmd_info",
            "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_validate"]
@@ -48,6 +48,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("gevsim: interrupted", file=sys.stderr)
         return 130
+    except MemoryError as exc:  # past the estimates checked up front (they leave out what depends on the data)
+        if args.verbose:
+            raise
+        print(f"gevsim: error: out of memory ({one_line(exc) or 'MemoryError'}): emulate a smaller size, a shorter "
+              "duration or fewer chunk_steps or frames", file=sys.stderr)
+        return 2
     except BrokenExecutor as exc:  # a worker was killed (out of memory, a signal): not bad input, but no traceback
         if args.verbose:
             raise
