@@ -90,18 +90,23 @@ def check_writable(out: str | os.PathLike, *, inside: bool = False) -> None:
             from None
 
 
-def check_emulation(config: EmulationConfig, *, width: int, height: int, duration_s: float) -> None:
+def check_emulation(config: EmulationConfig, *, width: int, height: int, duration_s: float,
+                    substeps: int = 1) -> None:
     """Memory of an emulation of ``config`` (an EmulationConfig) at ``width`` x ``height`` px: one chunk
-    (``chunk_steps``) and the whole run's time grid and millisecond index (the duration and ``step_s``)."""
-    steps = duration_s / config.step_s
+    (``chunk_steps``) and the whole run's time grid and millisecond index (the duration and ``step_s``),
+    each step split into ``substeps`` (known once the basis is rendered: the sensor's fastest noise path)."""
+    steps = duration_s / config.step_s * substeps
     px = int(width) * int(height)
-    chunk = min(config.chunk_steps, steps) * px * (CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR * len(config.emulators))
-    fits_memory(chunk, what=f"chunks of {config.chunk_steps} steps x {width}x{height} px x "
+    chunk = min(config.chunk_steps * substeps, steps) * px * (CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR
+                                                              * len(config.emulators))
+    split = f" split into {substeps} sub-steps each" if substeps > 1 else ""
+    fits_memory(chunk, what=f"chunks of {config.chunk_steps} steps{split} x {width}x{height} px x "
                             f"{len(config.emulators)} emulators", source=config.source, key="emulation.chunk_steps",
                 hint=": lower chunk_steps (it bounds memory, not results)")
     whole = steps * STEP_BYTES + (duration_s * 1e3 + 1) * MS_BYTES * len(config.emulators)
-    fits_memory(whole, what=f"{steps:.4g} steps (duration_s = {duration_s:g} over step_s = {config.step_s:g})",
-                source=config.source, key="emulation.duration_s", hint=": shorten the duration or lengthen step_s")
+    fits_memory(whole, what=f"{steps:.4g} steps (duration_s = {duration_s:g} over step_s = {config.step_s:g}"
+                            f"{split})", source=config.source, key="emulation.duration_s",
+                hint=": shorten the duration or lengthen step_s" if substeps == 1 else ": shorten the duration")
 
 
 def check_render_frames(rate_hz: float, duration_s: float, *, width: int, height: int, channels: int,

@@ -52,6 +52,17 @@ def test_a_run_of_a_trillion_steps_is_refused(tmp_path, capsys, one_gib):
            "5.82 TiB of memory; this machine has 1 GiB" in err
 
 
+def test_a_coarse_step_is_sized_with_its_noise_sub_steps(tmp_path, capsys, one_gib):
+    # A 10 s step is split into ~10^5 sub-steps (the pixel's fastest noise path): 4497280 x 3072 float64 at
+    # 64x48 was a MemoryError traceback. Refused once the render says how many (the render happens first).
+    cfg = emulation(tmp_path, "duration_s = 100.0\nstep_s = 10.0")
+    assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "run.toml: emulation.chunk_steps: chunks of 256 steps split into " in err
+    assert "sub-steps each x 24x18 px x 1 emulators need about" in err and "this machine has 1 GiB" in err
+    assert not (tmp_path / "x.h5").exists()
+
+
 def test_render_frames_are_counted_and_sized_before_rendering(tmp_path, capsys, monkeypatch):
     render = ["render", str(DATA / "card.toml"), "--out", str(tmp_path / "r"), "--width", "24", "--height", "18",
               "--spp", "2"]

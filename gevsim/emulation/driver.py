@@ -197,6 +197,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     # The time grid (sub-steps, steps split at lamp jumps) comes from the run with flicker and noise,
     # so that its counterfactuals step alike and draw the same noise at the same steps (paired runs).
     sub = substeps(config, setup)
+    check_emulation(config, width=setup.manifest.render.width, height=setup.manifest.render.height,
+                    duration_s=setup.duration_s, substeps=sub)
     grid_waveforms = setup.waveforms
     setup = counterfactual(setup, flicker=flicker, noise=noise)
     render_s = time.perf_counter() - start
