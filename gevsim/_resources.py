@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 from pathlib import Path
@@ -44,6 +45,21 @@ def free_disk_bytes(path: str | os.PathLike) -> int | None:
         return int(shutil.disk_usage(p).free)
     except OSError:
         return None
+
+
+#: Free space an output leaves on its disk while it is written. HDF5 writes its metadata and chunk caches
+#: later, when it decides (the default chunk cache is 1 MiB per dataset; a file has a few), and
+#: dv-processing writes an AEDAT4 file's index when it closes: those writes must still fit, because a
+#: failure inside them crashes h5py or aborts dv-processing's C++ (issue 24 #9).
+HEADROOM_BYTES = 8 * 2**20
+
+
+def ensure_room(path: str | os.PathLike, nbytes: int) -> None:
+    """Raise ``OSError(ENOSPC)`` naming ``path`` unless ``nbytes`` more (an upper bound) plus
+    :data:`HEADROOM_BYTES` fit on its disk; nothing where the free space is unknown."""
+    free = free_disk_bytes(path)
+    if free is not None and free < int(nbytes) + HEADROOM_BYTES:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), os.fspath(path))
 
 
 def gib(n_bytes: float) -> str:

@@ -21,19 +21,7 @@ import os
 
 import h5py
 
-from gevsim._resources import free_disk_bytes
-
-#: Free space an event file leaves on its disk: HDF5's metadata and chunk caches are written later, when
-#: HDF5 decides, and must still fit (the default chunk cache is 1 MiB per dataset; a file has a few).
-HEADROOM_BYTES = 8 * 2**20
-
-
-def ensure_room(path: str | os.PathLike, nbytes: int) -> None:
-    """Raise ``OSError(ENOSPC)`` naming ``path`` unless ``nbytes`` more (uncompressed, so an upper bound)
-    plus :data:`HEADROOM_BYTES` fit on its disk; nothing where the free space is unknown."""
-    free = free_disk_bytes(path)
-    if free is not None and free < int(nbytes) + HEADROOM_BYTES:
-        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), os.fspath(path))
+from gevsim._resources import HEADROOM_BYTES, ensure_room  # noqa: F401 (re-exported)
 
 
 def disk_error(exc: BaseException, path: str | os.PathLike | None) -> OSError | None:
@@ -80,3 +68,22 @@ def _sink(file: h5py.File) -> None:
                 os.dup2(null, fd)
             finally:
                 os.close(null)
+
+
+def sink_path(path: str | os.PathLike) -> int:
+    """Point every descriptor this process holds on ``path`` at the null device (found in /proc/self/fd; none
+    where that does not exist): a writer that is thrown away then closes without writing to a full disk, for
+    writers whose descriptor is not exposed (dv-processing, which aborts the process when a write fails).
+    Returns how many descriptors were redirected."""
+    target, done = os.path.realpath(path), 0
+    with contextlib.suppress(OSError):
+        for name in os.listdir("/proc/self/fd"):
+            with contextlib.suppress(OSError, ValueError):
+                if os.readlink(f"/proc/self/fd/{name}") == target:
+                    null = os.open(os.devnull, os.O_RDWR)
+                    try:
+                        os.dup2(null, int(name))
+                        done += 1
+                    finally:
+                        os.close(null)
+    return done

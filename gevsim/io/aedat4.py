@@ -21,10 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim._resources import ensure_room
 from gevsim.errors import ConfigError, MissingExtraError
+from gevsim.io._child import run_in_child
+from gevsim.io._h5discard import sink_path
 from gevsim.io.atomic import atomic_path
 from gevsim.io.hdf5 import EventReader
 from gevsim.io.ownership import check_file, sweep_beside
+from gevsim.resources import AEDAT4_EVENT_BYTES, check_export  # dv-processing aborts on a full disk
 
 __all__ = ["aedat4_streams", "export_aedat4", "read_aedat4"]
 
@@ -86,7 +90,7 @@ def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: l
     ``streams`` names gevsim streams to export (default: all). Returns the AEDAT4 stream
     names with their event counts.
     """
-    dv = _dv()
+    _dv()  # a missing extra is said before any work
     out = Path(out)
     check_file(out, "AEDAT4", _is_gevsim_aedat4, inputs=[path])  # replaces only an earlier export, never the input
     sweep_beside(out)
@@ -100,28 +104,40 @@ def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: l
             mapping = {k: v for k, v in mapping.items() if v[0] in streams}
         if not mapping:
             raise ConfigError("the file holds no event stream to export", source=str(path))
-        config = dv.io.MonoCameraWriter.Config(CAMERA)
-        for name in mapping:
-            config.addEventStream((r.width, r.height), name)
-        from gevsim.resources import check_export  # dv-processing aborts the process on a full disk: check first
-
+        size = (r.width, r.height)
         check_export(sum(r.count(s) for s in dict.fromkeys(s for s, _ in mapping.values())), out, source=str(out))
-        counts = dict.fromkeys(mapping, 0)
-        with atomic_path(out, suffix=".aedat4") as tmp:
-            writer = dv.io.MonoCameraWriter(str(tmp), config)
-            try:
-                for start in _busy_windows(r, dict.fromkeys(s for s, _ in mapping.values())):
-                    for stream in dict.fromkeys(s for s, _ in mapping.values()):
-                        ev = r.read(stream, start, start + WINDOW_US)
-                        for name, (s, axis) in mapping.items():
-                            if s != stream:
-                                continue
-                            sel = ev if axis is None else ev[ev["axis"] == axis]
-                            if len(sel):
-                                writer.writeEvents(_store(dv, sel), name)
-                                counts[name] += len(sel)
-            finally:
-                del writer  # closes the file: its last packets and index are written here
+    with atomic_path(out, suffix=".aedat4") as tmp:  # dv-processing aborts its process on a failed write
+        return run_in_child(_write, path, tmp, out, mapping, size, target=out)
+
+
+def _write(path: str | os.PathLike, tmp: Path, out: Path, mapping: dict, size: tuple[int, int]) -> dict:
+    """Write the streams ``mapping`` of ``path`` into ``tmp`` (the stage of ``out``); their event counts."""
+    dv = _dv()
+    config = dv.io.MonoCameraWriter.Config(CAMERA)
+    for name in mapping:
+        config.addEventStream(size, name)
+    counts = dict.fromkeys(mapping, 0)
+    streams = dict.fromkeys(s for s, _ in mapping.values())
+    with EventReader(path) as r:
+        writer = dv.io.MonoCameraWriter(str(tmp), config)
+        failed = True
+        try:
+            for start in _busy_windows(r, streams):
+                for stream in streams:
+                    ev = r.read(stream, start, start + WINDOW_US)
+                    for name, (s, axis) in mapping.items():
+                        if s != stream:
+                            continue
+                        sel = ev if axis is None else ev[ev["axis"] == axis]
+                        if len(sel):  # room first: a write that fails in dv-processing aborts the process
+                            ensure_room(out, len(sel) * AEDAT4_EVENT_BYTES)
+                            writer.writeEvents(_store(dv, sel), name)
+                            counts[name] += len(sel)
+            failed = False
+        finally:
+            if failed:  # the file is thrown away: its last writes go nowhere (a full disk would abort dv)
+                sink_path(tmp)
+            del writer  # closes the file: its last packets and index are written here
     return counts
 
 

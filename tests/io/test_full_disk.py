@@ -84,7 +84,7 @@ def test_emulate_on_a_full_disk_prints_one_line_and_keeps_the_earlier_file(tmp_p
 def test_the_writer_refuses_data_before_hdf5_meets_a_full_disk(tmp_path, capsys, monkeypatch):
     # A study's workers filling one disk still crashed h5py now and then (a failed write of HDF5's own caches
     # leaves identifiers half freed): a chunk that would leave less than HEADROOM_BYTES free is refused first.
-    from gevsim.io import _h5discard
+    from gevsim import _resources
 
     out, cfg = tmp_path / "run.h5", emulation(tmp_path)
     assert main(["emulate", str(cfg), "--out", str(out), "--cache", str(tmp_path / "c"), "-q"]) == 0
@@ -92,10 +92,49 @@ def test_the_writer_refuses_data_before_hdf5_meets_a_full_disk(tmp_path, capsys,
     capsys.readouterr()
     puts = []
     monkeypatch.setattr("gevsim.io.hdf5._Stream._put", lambda self, columns, n: puts.append(n))
-    monkeypatch.setattr(_h5discard, "free_disk_bytes", lambda path: _h5discard.HEADROOM_BYTES + 100)
+    monkeypatch.setattr(_resources, "free_disk_bytes", lambda path: _resources.HEADROOM_BYTES + 100)
     assert main(["emulate", str(cfg), "--out", str(out), "--cache", str(tmp_path / "c"), "-q", "--seed", "3"]) == 2
     assert capsys.readouterr().err == f"gevsim: error: {out}: no space left on device\n"
     assert puts == [] and out.read_bytes() == before and leftovers(tmp_path) == []
+
+
+def test_export_stops_before_dv_processing_meets_a_full_disk(good, tmp_path, capsys, monkeypatch):
+    # dv-processing aborts the process (C++ FileWriteError, exit 134, its temp file left) when the disk fills
+    # during the write: every packet is checked against the free space first.
+    from gevsim import _resources
+
+    monkeypatch.setattr(_resources, "free_disk_bytes", lambda path: _resources.HEADROOM_BYTES + 10)
+    out = tmp_path / "x.aedat4"
+    assert main(["export", str(good), "--format", "aedat4", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == f"gevsim: error: {out}: no space left on device\n"
+    assert not out.exists() and leftovers(tmp_path) == []
+
+
+def _abort():
+    os.abort()
+
+
+def _refuse():
+    raise ValueError("refused in the child")
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork")
+def test_a_writer_that_kills_its_process_only_kills_a_child(tmp_path, monkeypatch):
+    # dv-processing aborts its process when a write fails from its own thread (a disk filling during export:
+    # exit 134 and the stage left behind); in a child, the abort is an OSError here.
+    from gevsim import _resources
+    from gevsim.io._child import run_in_child
+
+    assert run_in_child(sum, (1, 2), target=tmp_path) == 3
+    with pytest.raises(ValueError, match="refused in the child"):
+        run_in_child(_refuse, target=tmp_path)
+    with pytest.raises(OSError, match="SIGABRT") as died:
+        run_in_child(_abort, target=tmp_path)
+    assert died.value.errno == errno.EIO and died.value.filename == str(tmp_path)
+    monkeypatch.setattr(_resources, "free_disk_bytes", lambda path: 0)  # the child died on a full disk
+    with pytest.raises(OSError) as full:
+        run_in_child(_abort, target=tmp_path)
+    assert full.value.errno == errno.ENOSPC
 
 
 def self_stage(out: Path) -> Path:
