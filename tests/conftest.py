@@ -11,10 +11,12 @@ Renders that take seconds are marked ``slow`` (``pytest -m "not slow"`` leaves t
 """
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from gevsim import cli
 from gevsim.errors import ConfigError
 from gevsim.render import activate, load, override
 from gevsim.render.backend import FLAVOURS, ScalarFallbackWarning, VariantChoice, activate_variant
@@ -120,3 +122,16 @@ def textured_scene(folder, *, card=0.5, backdrop=0.3):
         manifest.write_text((Path(__file__).parent / "data" / "card.toml").read_text()
                             .replace('name = "card"', 'name = "textured"').replace("card.py", "textured.py"))
     return manifest
+
+
+@pytest.fixture(scope="session")
+def good(tmp_path_factory):
+    """A small good emulation file (card scene, davis346, DVS and gradient events, 24x18 px, 4 ms), made once;
+    tests that corrupt or move it work on a copy."""
+    tmp = tmp_path_factory.mktemp("good")
+    cfg = tmp / "em.toml"
+    card = Path(__file__).parent / "data" / "card.toml"
+    cfg.write_text(f'[emulation]\nscene = "{card}"\nsensor = "davis346"\nduration_s = 0.004\n'
+                   'step_s = 5e-5\nemulators = ["dvs", "gradient"]\n[render]\nwidth = 24\nheight = 18\nspp = 2\n')
+    assert cli.main(["emulate", str(cfg), "--out", str(tmp / "good.h5"), "-q", "--cache", str(tmp / "c")]) == 0
+    return tmp / "good.h5"
