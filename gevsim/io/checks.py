@@ -47,6 +47,11 @@ MAX_T_END_US = int(MAX_DURATION_S) * 10**6
 BLOCK = 2**20
 
 
+def _text(value: object) -> str | None:
+    """An untrusted attribute as text, or None when it is not a string (an array, a number)."""
+    return value if isinstance(value, str) else None
+
+
 def _show(value: object) -> str:
     if isinstance(value, np.ndarray | np.generic):
         value = value.tolist()
@@ -113,7 +118,7 @@ def stream_dtype(group: h5py.Group, *, source: str) -> np.dtype:
         raise ConfigError(f"must list the stream's columns, 't' among them, got {_show(fields)}", source=source,
                           key=f"{group.name} attribute 'fields'")
     columns = {name: _column(group, name, source, integer=name == "t") for name in names}
-    dtype = np.dtype([(name, np.bool_ if ds.attrs.get(BOOL_ATTR) == "bool" else ds.dtype)
+    dtype = np.dtype([(name, np.bool_ if _text(ds.attrs.get(BOOL_ATTR)) == "bool" else ds.dtype)
                       for name, ds in columns.items()])
     want = STANDARD.get(group.name.lstrip("/")) or next(
         (d for d in STANDARD.values() if set(d.names or ()) == set(names)), None)

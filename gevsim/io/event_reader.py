@@ -18,6 +18,26 @@ FORMAT = "gevsim-events-2"
 READABLE_FORMATS = ("gevsim-events-1", FORMAT)
 
 
+#: Streams already checked, per file identity (see EventReader); bounded: cleared when it grows past 256 files.
+_CHECKED: dict[tuple, dict[str, np.dtype]] = {}
+
+
+def _identity(path: Path) -> tuple | None:
+    """What identifies one version of a file: its real path, device, inode, size and modification time."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    if len(_CHECKED) > 256:
+        _CHECKED.clear()
+    return (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _is_text(value: object, expected: str) -> bool:
+    """Whether an untrusted attribute is the text ``expected`` (an array or number is not)."""
+    return isinstance(value, str) and value == expected
+
+
 class EventReader:
     """Read a complete gevsim HDF5 event file.
 
@@ -39,15 +59,20 @@ class EventReader:
         except OSError as exc:
             raise ConfigError(f"not an HDF5 file ({exc})", source=src) from None
         attrs = self._file.attrs
-        if attrs.get("format") not in READABLE_FORMATS:
+        fmt, complete = attrs.get("format"), attrs.get("complete", False)  # untrusted: arrays, bytes, anything
+        if not isinstance(fmt, str) or fmt not in READABLE_FORMATS:
             self._file.close()
-            raise ConfigError(f"not a gevsim event file (format attribute {attrs.get('format')!r}, "
+            raise ConfigError(f"not a gevsim event file (format attribute {fmt!r}, "
                               f"expected one of {', '.join(map(repr, READABLE_FORMATS))})", source=src)
-        if not attrs.get("complete", False):
+        if not isinstance(complete, (bool, np.bool_)) or not complete:
             self._file.close()
             raise ConfigError("incomplete gevsim event file: the writer did not finish", source=src)
         self._ms_cache: dict[str, np.ndarray] = {}
-        self._dtypes: dict[str, np.dtype] = {}  # streams checked whole (gevsim.io.checks), with their dtypes
+        # Streams checked whole (gevsim.io.checks), with their dtypes: shared by every reader of this very file
+        # (same inode, size and modification time), so a file read again (a reconstruction per method, an
+        # export's child, a run's summary) is not checked again.
+        self._identity = _identity(self.path)
+        self._dtypes: dict[str, np.dtype] = _CHECKED.setdefault(self._identity, {}) if self._identity else {}
 
     def __enter__(self) -> EventReader:
         return self
@@ -86,7 +111,7 @@ class EventReader:
     def streams(self) -> tuple[str, ...]:
         """Names of the event streams in the file (sorted)."""
         return tuple(sorted(k for k, v in self._file.items()
-                            if isinstance(v, h5py.Group) and v.attrs.get("kind") == "events"))
+                            if isinstance(v, h5py.Group) and _is_text(v.attrs.get("kind"), "events")))
 
     @property
     def frame_names(self) -> tuple[str, ...]:

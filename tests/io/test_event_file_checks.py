@@ -88,6 +88,10 @@ CASES = {
                    "/frames/log_photocurrent/images: holds 1 values that are not finite"),
     "reversed frame times": (_values("frames/log_photocurrent/t", lambda v: v[::-1]),
                              "/frames/log_photocurrent/t: times must increase"),
+    # attributes holding arrays: 'the truth value of an array is ambiguous' tracebacks before
+    "format array": (_attr("format", np.array([1, 2])), "not a gevsim event file (format attribute array([1, 2])"),
+    "complete array": (_attr("complete", np.array([1, 0])), "incomplete gevsim event file"),
+    "bool marker array": (_attr("numpy_dtype", np.array([1, 2]), "events/p"), "/events: the columns must have dtype"),
 }
 #: Cases export does not read (it reads no frames).
 RECONSTRUCT_ONLY = {"NaN frames", "reversed frame times"}
@@ -174,3 +178,24 @@ def test_frame_times_must_increase_when_written(tmp_path):
         w.append_frame("intensity", np.zeros((2, 4), np.float32), 100)
         with pytest.raises(ValueError, match="not after the previous frame"):
             w.append_frame("intensity", np.zeros((2, 4), np.float32), 100)
+
+
+def test_a_file_is_checked_once_until_it_changes(good, tmp_path, monkeypatch):
+    # reconstruct checked the whole file again for every method, export in parent and child, a run's summary
+    # the file its driver had just checked.
+    from gevsim.io import checks
+
+    path = tmp_path / "x.h5"
+    path.write_bytes(good.read_bytes())
+    calls = []
+    original = checks.check_stream
+    monkeypatch.setattr(checks, "check_stream", lambda *a, **k: calls.append(1) or original(*a, **k))
+    for _ in range(3):
+        with EventReader(path) as r:
+            r.read("events")
+    assert len(calls) == 1
+    with h5py.File(path, "r+") as f:  # a new version of the file (its size and time change): checked again
+        f["events/x"][0] = 30000
+    with EventReader(path) as r, pytest.raises(ConfigError, match="outside the 24x18 sensor"):
+        r.read("events")
+    assert len(calls) == 2
