@@ -19,6 +19,8 @@ MIN_DURATION_S = 1e-6
 #: The longest recording an event file holds: one day (its ``t_end_us`` is checked against this when it is
 #: read, :mod:`gevsim.io.checks`), so emulations and frame sequences are refused beyond it before they run.
 MAX_DURATION_S = 86_400.0
+#: The highest ground-truth frame rate: frame times are whole microseconds, so faster frames would share one.
+MAX_FRAME_RATE_HZ = 1e6
 #: The most ground-truth frames one emulation writes (each is two float32 images in the file).
 MAX_FRAMES = 1_000_000
 
@@ -46,7 +48,8 @@ class TimeGrid(FromTable):
     def __post_init__(self) -> None:
         object.__setattr__(self, "step_s", real(self.step_s, "step_s", low=0.0, low_open=True))
         object.__setattr__(self, "chunk_steps", integer(self.chunk_steps, "chunk_steps", low=1))
-        object.__setattr__(self, "frame_rate_hz", real(self.frame_rate_hz, "frame_rate_hz", low=0.0))
+        object.__setattr__(self, "frame_rate_hz", real(self.frame_rate_hz, "frame_rate_hz", low=0.0,
+                                                       high=MAX_FRAME_RATE_HZ))
         if self.duration_s is not None:  # after frame_rate_hz is known finite: the frame count needs it
             object.__setattr__(self, "duration_s", real(self.duration_s, "duration_s", low=0.0, low_open=True))
             _check_duration(self.duration_s)

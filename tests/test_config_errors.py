@@ -111,7 +111,7 @@ def test_an_infinite_frame_rate_is_one_line(tmp_path, capsys, scene, command):
     path = make(tmp_path, scene, extra="frame_rate_hz = inf")
     table = {"emulate": "emulation"}.get(command, command)
     err = one_error(capsys, run_config(command, path, tmp_path))
-    assert f"{path}: {table}.frame_rate_hz: frame_rate_hz must be finite and >= 0, got inf" in err
+    assert f"{path}: {table}.frame_rate_hz: frame_rate_hz must be finite and in [0, 1e+06], got inf" in err
 
 
 # --- scene manifests (#16, #19, #15) -----------------------------------------------------------------------------
@@ -284,7 +284,10 @@ def frames(tmp_path) -> Path:
     (lambda f: (f / "timestamps.txt").write_text("0\n0.01\n90000\n"), [], "timestamps.txt: frame 2 is at 9e+04 s, "
                                                                            "past the latest time an event file holds"),
     (lambda f: (f / "f3.png").write_text("not an image"), ["--fps", "30"], "f3.png: cannot read the image"),
-], ids=["negative time", "binary timestamps", "tiny fps", "over a day", "unreadable image"])
+    # stored in whole microseconds: a second frame on the same tick was a ValueError traceback after loading
+    (lambda f: None, ["--fps", "3e6"], "fps: frames 0 and 1 (0.0 s, 3.3333333333333335e-07 s) fall on the same "
+                                      "microsecond"),
+], ids=["negative time", "binary timestamps", "tiny fps", "over a day", "unreadable image", "same microsecond"])
 def test_frame_mode_input_is_one_line(tmp_path, capsys, frames, write, flags, text):
     write(frames)
     err = one_error(capsys, ["emulate", "--frames", str(frames), "--out", str(tmp_path / "o.h5"), *flags])
@@ -298,6 +301,13 @@ def test_dataset_duration_too_short_is_one_line(tmp_path, capsys, scene):
     path = dataset(tmp_path, scene)
     err = one_error(capsys, run_config("dataset", path, tmp_path) + ["--duration", "1e-9"])
     assert "--duration: duration_s = 1e-09 is shorter than 1 us" in err
+
+
+def test_a_frame_rate_above_1_mhz_is_one_line(tmp_path, capsys, scene):
+    path = dataset(tmp_path, scene)
+    path.write_text(path.read_text().replace("[dataset]\n", "[dataset]\nframe_rate_hz = 2e6\n"))
+    err = one_error(capsys, run_config("dataset", path, tmp_path))
+    assert "frame_rate_hz" in err and "in [0, 1e+06], got 2000000.0" in err
 
 
 def test_a_duration_longer_than_an_event_file_holds_is_one_line(tmp_path, capsys, scene):

@@ -74,6 +74,8 @@ def _check_frames(frames, t_s) -> tuple[np.ndarray, np.ndarray]:
     if t.shape != (f.shape[0],):
         raise ValueError(f"t_s must have shape ({f.shape[0]},) to match the frames, got {t.shape}")
     increasing(t, "t_s", what="frame")
+    if np.any(np.diff(np.round(t * 1e6)) <= 0):
+        raise ValueError("t_s: frames must be at least 1 us apart (event files count whole microseconds)")
     return f.astype(np.float64, copy=False), t
 
 

@@ -84,6 +84,11 @@ def _in_range(t: np.ndarray, *, source: str, key: str | None = None) -> np.ndarr
     if len(t) and not t[-1] < _LATEST_S:
         raise ConfigError(f"frame {len(t) - 1} is at {t[-1]:.4g} s, past the latest time an event file holds "
                           f"({_LATEST_S:.4g} s)", source=source, key=key)
+    same = np.flatnonzero(np.diff(np.round(t * 1e6)) <= 0)  # frame times are stored in whole microseconds
+    if same.size:
+        k = int(same[0])
+        raise ConfigError(f"frames {k} and {k + 1} ({t[k]!r} s, {t[k + 1]!r} s) fall on the same microsecond, the "
+                          "clock tick of event files: frames must be at least 1 us apart", source=source, key=key)
     return t
 
 
