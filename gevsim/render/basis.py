@@ -231,15 +231,13 @@ def basis_bytes(poses: int, groups: int, settings: RenderSettings) -> int:
 
 
 def check_memory(poses: int, groups: int, settings: RenderSettings, *, source: str | None = None) -> None:
-    """Refuse, before any rendering, a basis that would not fit in this machine's memory."""
-    from gevsim._resources import gib, physical_memory_bytes
+    """Refuse, before any rendering, a basis that would not fit in the memory this process may use."""
+    from gevsim.resources import fits_memory
 
-    need, have = basis_bytes(poses, groups, settings), physical_memory_bytes()
-    if have is not None and need > have:
-        key = "render.max_px_per_pose" if poses > 1 else "render.width"
-        raise ConfigError(f"{poses} poses x {groups} light groups of {settings.width}x{settings.height} px need about "
-                          f"{gib(need)} of memory; this machine has {gib(have)}: render smaller, or fewer poses "
-                          "(a larger max_px_per_pose, a shorter duration)", source=source, key=key)
+    fits_memory(basis_bytes(poses, groups, settings),
+                what=f"{poses} poses x {groups} light groups of {settings.width}x{settings.height} px",
+                source=source, key="render.max_px_per_pose" if poses > 1 else "render.width",
+                hint=": render smaller, or fewer poses (a larger max_px_per_pose, a shorter duration)")
 
 
 def render_basis(
