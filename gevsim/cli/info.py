@@ -53,7 +53,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
     names = args.sensor or [n for n in preset_names() if n != "ideal"]
     presets = [load_preset(n) for n in names]  # every name checked before any run
     check_sensor_names(presets)
-    check_folder(args.out, "validation")  # before the runs: only an earlier report is replaced
+    check_folder(args.out, "validation", inputs=[p.source for p in presets])  # before the runs: only an earlier
+    # report is replaced, and never the folder holding a preset file it reads
     settings = Settings.quick() if args.quick else Settings()
     results = []
     for preset in presets:

@@ -43,6 +43,9 @@ _MARK_MAX_BYTES = 1 << 16
 # What each kind wrote before the mark existed (top-level names, and the manifest keys it always has).
 _RUN_ID = re.compile(r"[0-9a-f]{16}")  # a study's runs/<id>
 _SHARD = re.compile(r"seq_[0-9]{5,}\.(json|h5)")  # a dataset's shards/seq_NNNNN.*
+# Top-level names of a study (runs, its cache, results, report, plots) and of a dataset folder.
+_LEGACY_STUDY = re.compile(r"runs|render-cache|config\.toml|report\.md|results\.(csv|json)|maps\.npz|[a-z0-9_]+\.png")
+_LEGACY_DATASET = re.compile(r"shards|evreal|dataset\.json|render-cache")
 _LEGACY_FILES = {
     "render": ({"basis", "frames", MANIFEST, "contact_sheet.png", "waveform.png"},
                {"gevsim", "scene", "light_groups", "poses"}),
@@ -110,23 +113,27 @@ def legacy_kind(folder: str | os.PathLike, names: Iterable[str] | None = None) -
                 return kind
     if MANIFEST in names:
         return None
-    if "report.md" in names and all((folder / n / "results.json").is_file() for n in names - {"report.md"}):
+    sensors = names - {"report.md"}
+    if "report.md" in names and sensors and all((folder / n / "results.json").is_file() for n in sensors):
         return "validation"
-    if _only(folder / "runs", _RUN_ID):
+    if all(_LEGACY_STUDY.fullmatch(n) for n in names) and _only(folder / "runs", _RUN_ID):
         return "study"
     record = _small_json(folder / "dataset.json")
-    if _only(folder / "shards", _SHARD) or (isinstance(record, dict)
-                                             and {"gevsim_version", "sequences"} <= record.keys()):
+    if all(_LEGACY_DATASET.fullmatch(n) for n in names) and (_only(folder / "shards", _SHARD) or (
+            isinstance(record, dict) and {"gevsim_version", "sequences"} <= record.keys())):
         return "dataset"
     return None
 
 
 def _only(folder: Path, pattern: re.Pattern) -> bool:
-    """Whether ``folder`` is a folder (not a link) whose every entry matches ``pattern`` or is a stage."""
+    """Whether ``folder`` is a folder (not a link) holding at least one entry that matches ``pattern``, and
+    nothing else but stages."""
     try:
-        return not folder.is_symlink() and all(pattern.fullmatch(n) or _STAGE.match(n) for n in os.listdir(folder))
+        entries = [] if folder.is_symlink() else os.listdir(folder)
     except OSError:
         return False
+    return any(pattern.fullmatch(n) for n in entries) and all(pattern.fullmatch(n) or _STAGE.match(n)
+                                                               for n in entries)
 
 
 def _small_json(path: Path) -> object:

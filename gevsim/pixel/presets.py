@@ -97,8 +97,9 @@ def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None 
             parts[owner] = dataclasses.replace(parts[owner], **{key: value})
         except ValueError as exc:
             raise ConfigError(str(exc), source=source, key=prefix + key) from None
-    if overrides:
-        changed = "dark_current_a" if "dark_current_a" in overrides else next(iter(overrides))
+    changed = next((k for k in ("dark_current_a", "dark_current_spread", "temperature_k", "dark_current_doubling_k")
+                    if k in overrides), None)  # the keys the dark-current floor depends on
+    if changed is not None:
         check_dark_current(parts["photoreceptor"], parts["noise"], source=source, key=prefix + changed)
     return dataclasses.replace(preset, **parts, **top)
 

@@ -118,7 +118,7 @@ def write(results: list[tuple[SensorPreset, list[Row], dict]], out: str | Path, 
     from gevsim.io.atomic import atomic_dir
 
     check_sensor_names([preset for preset, _, _ in results])
-    with atomic_dir(out, kind="validation") as tmp:
+    with atomic_dir(out, kind="validation", inputs=[preset.source for preset, _, _ in results]) as tmp:
         tmp = Path(tmp)
         parts = []
         for preset, rows, curves in results:

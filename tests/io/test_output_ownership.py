@@ -6,6 +6,7 @@ leaves what was there untouched."""
 import json
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -181,6 +182,30 @@ def test_render_and_validate_refuse_before_any_work(tmp_path, capsys):
     _refused(["validate", "--sensor", str(preset), "--quick", "--out", str(tmp_path / "v"), "-q"], capsys,
              "sensor.name: '../x' is not a safe name")
     assert not (tmp_path / "v").exists()
+    mine = tmp_path / "mine"  # a folder holding only the preset validate reads: replacing it would delete it
+    mine.mkdir()
+    (mine / "my.toml").write_text((DATA.parents[1] / "noise" / "ideal.toml").read_text())
+    _refused(["validate", "--sensor", str(mine / "my.toml"), "--quick", "--out", str(mine), "-q"], capsys,
+             f"{mine}: holds an input of this run")
+    assert sorted(os.listdir(mine)) == ["my.toml"]
+
+
+def test_folders_from_before_the_mark_are_recognised_only_by_their_whole_layout(tmp_path):
+    from gevsim.io.ownership import legacy_kind
+
+    def layout(*names):
+        folder = Path(tempfile.mkdtemp(dir=tmp_path))
+        for name in names:
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text("x") if not name.endswith("/") else (folder / name).mkdir(exist_ok=True)
+        return legacy_kind(folder)
+
+    assert layout("runs/0123456789abcdef/", "report.md", "results.json", "pareto.png") == "study"
+    assert layout("shards/seq_00000.h5", "dataset.json", "evreal/") == "dataset"
+    assert layout("report.md", "davis346/results.json") == "validation"
+    # a project's own folders are not taken for gevsim's (validate or render would replace them whole)
+    assert layout("report.md") is None and layout("runs/") is None
+    assert layout("runs/0123456789abcdef/", "notes.txt") is None and layout("shards/", "thesis.tex") is None
 
 
 def test_reconstruct_refuses_a_render_folder_and_the_folder_holding_its_input(good, tmp_path, capsys):
