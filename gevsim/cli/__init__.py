@@ -84,9 +84,11 @@ def _failed_path(name: str | bytes | None, message: str) -> str:
         name = found.group(1) if found else None
     if name is None:
         return ""
+    from gevsim.io.atomic import _STAGE
+
     parts = Path(os.fsdecode(name)).parts
     for i, part in enumerate(parts):  # a stage ".<target>.gevsim-XXXXXXXX<suffix>" stands for its target
-        staged = re.fullmatch(r"\.(.+)\.gevsim-[A-Za-z0-9_]{8}.*", part)
+        staged = _STAGE.match(part)
         if staged:
-            return f"{Path(*parts[:i], staged.group(1))}: "
+            return f"{Path(*parts[:i], staged['name'])}: "
     return f"{Path(*parts)}: "
