@@ -62,15 +62,34 @@ def numba_caches(tmp_path_factory) -> dict[str, str]:
     return {cpu: str(tmp_path_factory.mktemp(f"numba-{cpu}")) for cpu in CPUS}
 
 
+@pytest.fixture(scope="module")
+def pin_runs(numba_caches, tmp_path_factory):
+    """The pinned tests under every emulated CPU, started together (each is mostly numba compiling, one
+    core each, while this process waits: side by side they take the time of one); cpu -> (process, log)."""
+    logs = tmp_path_factory.mktemp("pin-runs")
+    runs = {}
+    for cpu in sorted(CPUS):
+        env = cpu_environment(cpu)
+        env["NUMBA_CACHE_DIR"] = numba_caches[cpu]
+        log = logs / f"{cpu}.log"
+        with open(log, "w") as out:  # a file, not a pipe: a run waiting for its turn never blocks on output
+            runs[cpu] = (subprocess.Popen([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *PINNED],
+                                          cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT, text=True), log)
+    yield runs
+    for proc, _ in runs.values():
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("cpu", sorted(CPUS))
-def test_pins_hold_on_another_cpu(cpu, numba_caches):
-    env = cpu_environment(cpu)
-    env["NUMBA_CACHE_DIR"] = numba_caches[cpu]
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *PINNED],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, f"pins differ on the emulated {cpu} CPU:\n{proc.stdout[-6000:]}\n{proc.stderr[-3000:]}"
-    assert " passed" in proc.stdout and "failed" not in proc.stdout
+def test_pins_hold_on_another_cpu(cpu, pin_runs):
+    proc, log = pin_runs[cpu]
+    proc.wait(timeout=900)
+    output = log.read_text()
+    assert proc.returncode == 0, f"pins differ on the emulated {cpu} CPU:\n{output[-9000:]}"
+    assert " passed" in output and "failed" not in output
 
 
 @pytest.fixture(scope="module")
