@@ -163,17 +163,13 @@ def check_frames_fit(config: EmulationConfig, out: str | os.PathLike, *, width: 
                      duration_s: float) -> None:
     """Refuse, before any work, ground-truth frames that would not fit on the disk that ``out`` goes to
     (their size before compression: two float32 images a frame, and an APS frame with ``aps``)."""
-    from gevsim._resources import free_disk_bytes, gib
+    from gevsim.resources import fits_disk
 
     check_consistency(config, duration_s=duration_s)  # the time grid first (at most MAX_FRAMES frames)
     frames = len(config.time.frame_times_s(duration_s))
-    need = frames * width * height * (2 * 4 + (2 if config.aps else 0))
-    free = free_disk_bytes(out)
-    if free is not None and need > free:
-        raise ConfigError(f"{frames} ground-truth frames of {width}x{height} px (frame_rate_hz = "
-                          f"{config.frame_rate_hz:g} over {duration_s:g} s) take up to {gib(need)}; "
-                          f"{gib(free)} are free where {out} goes", source=config.source,
-                          key="emulation.frame_rate_hz")
+    fits_disk(frames * width * height * (2 * 4 + (2 if config.aps else 0)), out,
+              what=f"{frames} ground-truth frames of {width}x{height} px (frame_rate_hz = {config.frame_rate_hz:g} "
+                   f"over {duration_s:g} s)", source=config.source, key="emulation.frame_rate_hz")
 
 
 def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.PathLike | None = None,
