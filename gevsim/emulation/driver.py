@@ -19,7 +19,6 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-from scipy.constants import elementary_charge
 
 from gevsim import _portable as pm
 from gevsim._validate import real
@@ -35,6 +34,7 @@ from gevsim.emulation.emulators import (
     make_emulator,
 )
 from gevsim.emulation.summary import RunSummary
+from gevsim.emulation.truth import write_frames
 from gevsim.errors import ConfigError, suggest
 from gevsim.events.readout import Readout, chip_share, log_readouts
 from gevsim.illumination import from_spec, mix_poses, weights_at
@@ -68,6 +68,7 @@ class Setup:
     current_noise: np.ndarray | None = None  # (P, K, H, W): the render's error sample in photocurrent
     render_quality: dict = dataclasses.field(default_factory=dict)  # achieved render noise (summarize_quality)
     chip_lux_per_a: np.ndarray | None = None  # (K,): illuminance on the chip per ampere of each group's photocurrent
+    scene: MitsubaScene | None = None  # for the geometric ground truth (depth, flow, poses) at frame times
 
 
 def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = None,
@@ -114,7 +115,7 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
     # Photocurrent = Y E_factor 683 area R_k; illuminance on the chip = Y E_factor 683 (both x cos4 x scale).
     lux_per_a = lens.irradiance_factor * K_M_LM_PER_W / factors
     return Setup(manifest, preset, basis.times_s, current, waveforms, duration, scene.variant, current_noise=noise,
-                 render_quality=basis.noise_summary(), chip_lux_per_a=lux_per_a)
+                 render_quality=basis.noise_summary(), chip_lux_per_a=lux_per_a, scene=scene)
 
 
 def counterfactual(setup: Setup, *, flicker: bool = True, noise: bool = True) -> Setup:
@@ -162,12 +163,13 @@ def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.nd
 def check_frames_fit(config: EmulationConfig, out: str | os.PathLike, *, width: int, height: int,
                      duration_s: float) -> None:
     """Refuse, before any work, ground-truth frames that would not fit on the disk that ``out`` goes to
-    (their size before compression: two float32 images a frame, and an APS frame with ``aps``)."""
+    (their size before compression: two float32 log images, depth and 2-channel flow a frame, and an APS
+    frame with ``aps``)."""
     from gevsim.resources import fits_disk
 
     check_consistency(config, duration_s=duration_s)  # the time grid first (at most MAX_FRAMES frames)
     frames = len(config.time.frame_times_s(duration_s))
-    fits_disk(frames * width * height * (2 * 4 + (2 if config.aps else 0)), out,
+    fits_disk(frames * width * height * (2 * 4 + 3 * 4 + (2 if config.aps else 0)), out,
               what=f"{frames} ground-truth frames of {width}x{height} px (frame_rate_hz = {config.frame_rate_hz:g} "
                    f"over {duration_s:g} s)", source=config.source, key="emulation.frame_rate_hz")
 
@@ -236,7 +238,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
             if stored is not None:
                 layout.write_thresholds(wr, name, stored(em, preset))
         if config.frame_rate_hz > 0:
-            _write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
+            write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
         chunks = range(0, n_steps, config.chunk_steps)
         for c, a in enumerate(chunks):
             b = min(a + config.chunk_steps, n_steps)
@@ -362,30 +364,3 @@ def held_photocurrent(setup: Setup, t_start: float, t_end: np.ndarray) -> np.nda
     starts = np.r_[t_start, t_end[:-1]]
     dt = t_end - starts
     return photocurrent_at(setup, starts + 0.5 * dt, weights_at(setup.waveforms, starts, average_over_s=dt))
-
-
-def _write_frames(wr, setup: Setup, frame_t, dark, aps, aps_rng, config):
-    """Ground truth: noise-free log photocurrent (with and without flicker) and APS frames."""
-    mean = tuple(wf.constant() for wf in setup.waveforms)
-    for t in frame_t:
-        wt = weights_at(setup.waveforms, np.array([t]))
-        wm = weights_at(mean, np.array([t]))
-        t_us = int(round(t * 1e6))
-        wr.append_frame(layout.LOG_PHOTOCURRENT, pm.log(photocurrent_at(setup, np.array([t]), wt)[0] + dark)
-                        .astype(np.float32), t_us, **layout.FRAME_ATTRS[layout.LOG_PHOTOCURRENT])
-        wr.append_frame(layout.LOG_PHOTOCURRENT_NO_FLICKER,
-                        pm.log(photocurrent_at(setup, np.array([t]), wm)[0] + dark).astype(np.float32), t_us,
-                        **layout.FRAME_ATTRS[layout.LOG_PHOTOCURRENT_NO_FLICKER])
-        if aps is not None and t >= config.aps_exposure_s:
-            start = t - config.aps_exposure_s
-            wa = weights_at(setup.waveforms, np.array([start]), average_over_s=config.aps_exposure_s)
-            current = photocurrent_at(setup, np.array([start + 0.5 * config.aps_exposure_s]), wa)[0]
-            electrons = current * config.aps_exposure_s / elementary_charge
-            wr.append_frame(layout.APS, aps.read(electrons, config.aps_exposure_s, rng=aps_rng), t_us,
-                            **layout.FRAME_ATTRS[layout.APS])
-    if len(frame_t):
-        wr.set_attrs("/frames", units="ln(A) for log_photocurrent*, DN for aps")
-    if aps is not None and len(frame_t) > 1:
-        p = aps.params
-        wr.set_attrs(f"/frames/{layout.APS}", offset_dn=p.offset_dn, system_gain_dn_per_e=p.system_gain_dn_per_e,
-                     bit_depth=p.bit_depth, exposure_s=config.aps_exposure_s)

@@ -8,6 +8,9 @@ write it through these names; the evaluation reads it through them.
     /frames/log_photocurrent_no_flicker  ln(A), every lamp at its mean (scene mode)
     /frames/aps                          DN, attrs offset_dn, system_gain_dn_per_e, ... (scene mode)
     /frames/intensity                    the input frames in [0, 1] (frame mode)
+    /frames/depth                        m, z in the camera frame at each pixel centre, 0: no surface (scene mode)
+    /frames/flow                         px, (H, W, 2) forward optical flow to the next frame (scene mode)
+    /poses/{t, camera_to_world, linear_velocity_m_s, angular_velocity_rad_s}   at the frame times (scene mode)
     /thresholds/<emulator>               gradient: theta (n, H, W); dvs: nominal (on, off) ln
     /initial_state/<emulator>            gradient: ternary state (2, H, W) before the first event
 """
@@ -22,6 +25,12 @@ LOG_PHOTOCURRENT = "log_photocurrent"
 LOG_PHOTOCURRENT_NO_FLICKER = "log_photocurrent_no_flicker"
 APS = "aps"
 INTENSITY = "intensity"
+DEPTH = "depth"
+FLOW = "flow"
+POSES_T = "/poses/t"
+POSES_CAMERA = "/poses/camera_to_world"
+POSES_LINEAR = "/poses/linear_velocity_m_s"
+POSES_ANGULAR = "/poses/angular_velocity_rad_s"
 
 #: units and meaning of each frame stream's images (``EventWriter.append_frame(..., **FRAME_ATTRS[name])``).
 FRAME_ATTRS: dict[str, dict[str, str]] = {
@@ -32,6 +41,10 @@ FRAME_ATTRS: dict[str, dict[str, str]] = {
     APS: {"units": "DN", "meaning": "APS frame (EMVA 1288 model) exposed until the frame time; "
                                     "see the group's offset_dn and system_gain_dn_per_e"},
     INTENSITY: {"units": "1", "meaning": "input frame, linear gray value in [0, 1] (frame mode)"},
+    DEPTH: {"units": "m", "meaning": "depth (z in the camera frame) of the surface seen through each pixel centre; "
+                                     "0 where there is none (gevsim.render.groundtruth)"},
+    FLOW: {"units": "px", "meaning": "forward optical flow (dx right, dy down) of the surface point at each pixel "
+                                     "centre, to the next frame's time (gevsim.render.groundtruth)"},
 }
 
 

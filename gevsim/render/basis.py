@@ -21,17 +21,22 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-import gevsim
 from gevsim.errors import ConfigError
 from gevsim.illumination import Waveform, weights_at
-from gevsim.io import read_exr_layers, sweep_stale, write_exr_layers
 from gevsim.optics import luminance
-from gevsim.render.basis_cache import CACHE_VERSION, _serves, cache_key, default_cache_dir, serves  # noqa: F401
+from gevsim.render.basis_cache import (  # noqa: F401  (re-exported: they lived here)
+    CACHE_VERSION,
+    RenderCache,
+    _read_cached,
+    _serves,
+    cache_key,
+    default_cache_dir,
+    serves,
+)
 from gevsim.render.convergence import (
     MIN_BATCHES,
     BatchAccumulator,
@@ -41,8 +46,8 @@ from gevsim.render.convergence import (
     next_batch_spp,
     sample_se_ln,
 )
-from gevsim.render.manifest_checks import check_rendered
 from gevsim.render.quality import RenderSettings, resolve_target
+from gevsim.render.rays import PinholeGrid
 from gevsim.render.scene import MitsubaScene, exact_count
 
 log = logging.getLogger(__name__)
@@ -70,7 +75,8 @@ def batch_seed(seed: int, batch: int) -> int:
 
 
 def render_pose(
-    scene: MitsubaScene, request: dict, *, budget_s: float | None = None, one_pass: bool | None = None
+    scene: MitsubaScene, request: dict, *, budget_s: float | None = None, one_pass: bool | None = None,
+    grid: PinholeGrid | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, NoiseReport]:
     """Render the current pose's K group images in batches until the request is met.
 
@@ -80,35 +86,43 @@ def render_pose(
     request renders ``spp`` in an even number of equal batches (rounded up).
     ``one_pass=False`` renders each group on its own (the scene's choice by
     default; see :meth:`MitsubaScene.render_groups`), for comparisons.
+    ``grid`` renders a :class:`~gevsim.render.rays.PinholeGrid` instead of the film: images and
+    noise come at its cell resolution, the error map and the request's samples per pixel
+    are of its pixels (``grid.sub`` x ``grid.sub`` cells, each with 1 / sub^2 of the samples).
     """
     r = scene.manifest.render
-    acc = BatchAccumulator(request["mixtures"], floor_rel=request["floor_rel"], metric=request["metric"])
-    cap = max(1, MAX_BATCH_PATHS // (r.width * r.height))
+    per = 1 if grid is None else grid.sub**2  # cells a pixel's samples are spread over
+    acc = BatchAccumulator(request["mixtures"], floor_rel=request["floor_rel"], metric=request["metric"],
+                           cells=1 if grid is None else grid.sub)
+    cells = r.width * r.height if grid is None else grid.width * grid.height
+    cap = max(1, MAX_BATCH_PATHS // cells)  # samples per cell
     target = request["target_ln"]
     start = time.perf_counter()
 
-    def batch(spp: int) -> None:
-        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches), one_pass=one_pass)
-        acc.add(images, luminance(images), scene.sample_count(spp))
+    on_grid = {} if grid is None else {"grid": grid}
+
+    def batch(spp: int) -> None:  # samples per cell
+        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches), one_pass=one_pass, **on_grid)
+        acc.add(images, luminance(images), scene.sample_count(spp) * per)
 
     if target is None:
-        size, count = fixed_batches(request["spp"], r.sampler, cap=cap)
+        size, count = fixed_batches(-(-request["spp"] // per), r.sampler, cap=cap)
         for _ in range(count):
             batch(size)
         stopped = "fixed"
     else:
         stopped = None
         while stopped is None:
-            size = next_batch_spp(acc.spp, first=FIRST_BATCH_SPP, cap=cap)
-            size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - acc.spp) // 2)))
+            size = next_batch_spp(acc.spp // per, first=max(1, FIRST_BATCH_SPP // per), cap=cap)
+            size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - acc.spp) // (2 * per))))
             for _ in range(2):
                 batch(size)
             elapsed = time.perf_counter() - start
             if acc.batches >= MIN_BATCHES and np.percentile(acc.se_ln(), request["percentile"]) <= target:
                 stopped = "target"
-            elif acc.spp + 2 * exact_count(r.sampler, 1) > request["max_spp"]:
+            elif acc.spp + 2 * exact_count(r.sampler, 1) * per > request["max_spp"]:
                 stopped = "max_spp"
-            elif budget_s is not None and elapsed * (1.0 + 2.0 * size / acc.spp) > budget_s:
+            elif budget_s is not None and elapsed * (1.0 + 2.0 * size * per / acc.spp) > budget_s:
                 stopped = "time_budget"
     assert stopped is not None
     se_map = acc.se_ln()
@@ -255,14 +269,9 @@ def render_basis(
     short of its noise target (``max_spp`` or ``time_budget_s``) logs a warning
     with the numbers.
     """
-    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    try:
-        cache.mkdir(parents=True, exist_ok=True)
-        writable = True
-        sweep_stale(cache, recursive=False)  # renders killed half way (other processes' live ones are locked)
-    except OSError as exc:
-        log.warning("render cache %s cannot be made (%s); rendering without caching", cache, exc.strerror or exc)
-        writable = False
+    from gevsim.render import poses
+
+    cache = RenderCache(cache_dir)
     m = scene.manifest
     r = m.render
     times = scene.pose_times() if times_s is None else np.asarray(times_s, float)
@@ -278,51 +287,15 @@ def render_basis(
         if why is not None:
             raise ConfigError(f"denoise = true, but the denoiser cannot be used: {why}", source=m.source,
                               key="render.denoise")
-    images, noise, keys, quality = [], [], [], []
-    seconds = np.zeros(len(times))
-    started = time.perf_counter()
-    for p, t in enumerate(times):
-        pose = scene.pose_at(float(t))
-        key = cache_key(scene, pose)
-        path = cache / f"{key}.exr"
-        cached = _read_cached(path, groups, (r.height, r.width))
-        if cached is not None and _serves(path, cached, request):
-            mean, err, _, meta = cached
-            quality.append(meta["report"])
-        else:
-            scene.set_pose(pose)
-            budget = None
-            if r.time_budget_s is not None:
-                budget = max(0.0, r.time_budget_s - (time.perf_counter() - started)) / (len(times) - p)
-            mean, err, se_map, report = render_pose(scene, request, budget_s=budget)
-            check_rendered(mean, source=m.source, t_s=float(t))
-            seconds[p] = report.seconds
-            quality.append(report.as_dict())
-            layers = {f"group{k}": mean[k] for k in range(len(groups))}
-            layers.update({f"noise{k}": err[k] for k in range(len(groups))})
-            layers["se_ln"] = se_map
-            meta = {"groups": list(groups), "t_s": float(t), "scene": m.name, "variant": scene.variant.variant,
-                    "gevsim": gevsim.__version__, "spp": report.spp, "report": report.as_dict(),
-                    "mixtures": request["mixtures"].tolist(), "floor_rel": request["floor_rel"],
-                    "metric": request["metric"], "time_budget_s": request["time_budget_s"],
-                    "sampler": r.sampler, "one_pass": scene.one_pass, "denoised": bool(r.denoise)}
-            if writable:
-                try:
-                    write_exr_layers(path, layers, metadata=meta)
-                except (OSError, ConfigError) as exc:  # read-only or full: the run goes on, uncached
-                    log.warning("cannot write to the render cache %s (%s); going on without caching", cache,
-                                getattr(exc, "strerror", None) or exc)
-                    writable = False
-        images.append(mean)
-        noise.append(err)
-        keys.append(key)
-        if progress:
-            progress(p + 1, len(times))
+    method = poses.choose(scene, times)
+    done = poses.METHODS[method][1](scene, times, request, cache, progress)
+    quality, seconds = done.quality, done.seconds
     rendered = int((seconds > 0).sum())
     summary = summarize_quality(quality)
-    log.info("basis: %d poses x %d groups, %d rendered, %d from cache; %d-%d spp, p%g ln error %.4g (target %s)",
-             len(times), len(groups), rendered, len(times) - rendered, summary["spp_min"], summary["spp_max"],
-             summary["percentile"], summary["se_ln"]["at_percentile"], summary["target_ln"])
+    log.info("basis: %d poses x %d groups (reuse: %s), %d rendered, %d from cache or reused; %d-%d spp, p%g ln "
+             "error %.4g (target %s)", len(times), len(groups), method, rendered, len(times) - rendered,
+             summary["spp_min"], summary["spp_max"], summary["percentile"], summary["se_ln"]["at_percentile"],
+             summary["target_ln"])
     if not summary["reached"]:
         log.warning("render of %r stopped short of its noise target: p%g of the ln standard error is %.4g > %.4g "
                     "after %d spp (stopped by %s). Flicker-induced gradient events may be render noise: compare "
@@ -332,11 +305,11 @@ def render_basis(
     return BasisSet(
         times_s=times,
         groups=groups,
-        images=np.asarray(images, np.float32),
+        images=np.asarray(done.images, np.float32),
         waveforms=waveforms,
-        keys=keys,
+        keys=done.keys,
         render_s=seconds,
-        noise=np.asarray(noise, np.float32),
+        noise=np.asarray(done.noise, np.float32),
         quality=quality,
     )
 
@@ -347,27 +320,3 @@ def _value_range(waveform: Waveform, group: str) -> tuple[float, float]:
     if value_range is None:
         raise ValueError(f"the waveform of light group {group!r} gives no value range for the noise target")
     return value_range
-
-
-def _read_cached(path: Path, groups: tuple[str, ...], shape: tuple[int, int]):
-    """(mean, noise, se_map, meta) of a cached pose, or None when absent; a file that is unreadable or not
-    what :func:`render_basis` writes (truncated, foreign, non-finite, another size) is logged and re-rendered."""
-    if not path.exists():
-        return None
-    try:
-        layers, meta = read_exr_layers(path)
-        mean = np.stack([layers[f"group{k}"] for k in range(len(groups))])
-        err = np.stack([layers[f"noise{k}"] for k in range(len(groups))])
-        se_map = layers["se_ln"][..., 0]
-        if mean.shape[1:3] != shape or mean.shape[3] not in (1, 3) or err.shape != mean.shape or se_map.shape != shape:
-            raise ValueError(f"images of {mean.shape[2]}x{mean.shape[1]} px, expected {shape[1]}x{shape[0]}")
-        if not (np.isfinite(mean).all() and np.isfinite(err).all()):
-            raise ValueError("non-finite pixels")
-        if meta.get("groups") != list(groups):
-            raise ValueError(f"light groups {meta.get('groups')!r}, expected {list(groups)!r}")
-        summarize_quality([meta["report"]])  # the record every output copies: complete, of the right types
-        int(meta["spp"])
-    except Exception as exc:  # a corrupt or foreign file is re-rendered, not fatal
-        log.warning("cache file %s is unusable (%s); rendering again", path, exc)
-        return None
-    return mean, err, se_map, meta

@@ -87,3 +87,73 @@ def _serves(path: Path, cached: tuple, request: dict) -> bool:
     except Exception as exc:
         log.warning("cache file %s is unusable (%s); rendering again", path, exc)
         return False
+
+
+class RenderCache:
+    """The render cache folder: cached renders read back checked, new ones written; a folder that
+    cannot be made or written to is logged once and the work goes on uncached."""
+
+    def __init__(self, cache_dir: str | os.PathLike | None):
+        from gevsim.io import sweep_stale
+
+        self.path = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+            self.writable = True
+            sweep_stale(self.path, recursive=False)  # renders killed half way (other processes' live ones are locked)
+        except OSError as exc:
+            log.warning("render cache %s cannot be made (%s); rendering without caching", self.path,
+                        exc.strerror or exc)
+            self.writable = False
+
+    def read(self, key: str, groups: tuple[str, ...], shape: tuple[int, int], request: dict):
+        """(mean, noise, se_map, meta) of the cached render ``key`` when it exists, is sound and serves
+        ``request``; else None. ``shape`` is the images' (H, W)."""
+        path = self.path / f"{key}.exr"
+        cached = _read_cached(path, groups, shape)
+        return cached if cached is not None and _serves(path, cached, request) else None
+
+    def write(self, key: str, mean: np.ndarray, noise: np.ndarray, se_map: np.ndarray, meta: dict) -> None:
+        """Cache a render (every group's image and noise sample, and the error map), if the folder takes it."""
+        from gevsim.errors import ConfigError
+        from gevsim.io import write_exr_layers
+
+        if not self.writable:
+            return
+        layers = {f"group{k}": mean[k] for k in range(len(mean))}
+        layers.update({f"noise{k}": noise[k] for k in range(len(noise))})
+        layers["se_ln"] = se_map
+        try:
+            write_exr_layers(self.path / f"{key}.exr", layers, metadata=meta)
+        except (OSError, ConfigError) as exc:  # read-only or full: the run goes on, uncached
+            log.warning("cannot write to the render cache %s (%s); going on without caching", self.path,
+                        getattr(exc, "strerror", None) or exc)
+            self.writable = False
+
+
+def _read_cached(path: Path, groups: tuple[str, ...], shape: tuple[int, int]):
+    """(mean, noise, se_map, meta) of a cached render, or None when absent; a file that is unreadable or not
+    what :class:`RenderCache` writes (truncated, foreign, non-finite, another size) is logged and re-rendered."""
+    from gevsim.io import read_exr_layers
+    from gevsim.render.basis import summarize_quality
+
+    if not path.exists():
+        return None
+    try:
+        layers, meta = read_exr_layers(path)
+        mean = np.stack([layers[f"group{k}"] for k in range(len(groups))])
+        err = np.stack([layers[f"noise{k}"] for k in range(len(groups))])
+        se_map = layers["se_ln"][..., 0]
+        if mean.shape[1:3] != shape or mean.shape[3] not in (1, 3) or err.shape != mean.shape \
+                or se_map.shape != shape:
+            raise ValueError(f"images of {mean.shape[2]}x{mean.shape[1]} px, expected {shape[1]}x{shape[0]}")
+        if not (np.isfinite(mean).all() and np.isfinite(err).all()):
+            raise ValueError("non-finite pixels")
+        if meta.get("groups") != list(groups):
+            raise ValueError(f"light groups {meta.get('groups')!r}, expected {list(groups)!r}")
+        summarize_quality([meta["report"]])  # the record every output copies: complete, of the right types
+        int(meta["spp"])
+    except Exception as exc:  # a corrupt or foreign file is re-rendered, not fatal
+        log.warning("cache file %s is unusable (%s); rendering again", path, exc)
+        return None
+    return mean, err, se_map, meta

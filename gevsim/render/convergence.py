@@ -130,10 +130,13 @@ class BatchAccumulator:
         method with the batches' covariance. A noise pattern shared by every mixture is
         static and causes no flicker events; only its change with the mixture does.
         ``"absolute"``: the standard error of ln Y(w).
+    cells : images come in ``cells`` x ``cells`` cells per pixel (a supersampled render): the
+        images, halves and noise stay at cell resolution, the error statistics are of the pixels
+        (each the mean of its cells; ``spp`` counts the pixel's samples).
     """
 
     def __init__(self, mixtures: np.ndarray, *, floor_rel: float = 1e-3, reference: np.ndarray | None = None,
-                 metric: str = "flicker"):
+                 metric: str = "flicker", cells: int = 1):
         mixtures = np.asarray(mixtures, float)
         if mixtures.ndim != 2 or mixtures.shape[0] < 1:
             raise ValueError(f"BatchAccumulator: mixtures must be (M, K), got shape {mixtures.shape}")
@@ -144,6 +147,7 @@ class BatchAccumulator:
         if reference.shape != (mixtures.shape[1],):
             raise ValueError(f"BatchAccumulator: reference must have {mixtures.shape[1]} weights, got {reference!r}")
         self.mixtures = np.vstack([mixtures, reference])  # the last row is the reference
+        self.cells = integer(cells, "cells", low=1)
         self.metric = metric
         self.floor_rel = float(floor_rel)
         self.spp = 0
@@ -163,7 +167,12 @@ class BatchAccumulator:
             raise ValueError(f"BatchAccumulator.add: expected ({k}, H, W, C) images and ({k}, H, W) luminance, "
                              f"got {images.shape} and {lum.shape}")
         integer(spp, "spp", low=1)
-        y = np.tensordot(self.mixtures, lum, axes=1)  # (M + 1, H, W)
+        if self.cells > 1:
+            c, (kk, h, w) = self.cells, lum.shape
+            if h % c or w % c:
+                raise ValueError(f"BatchAccumulator.add: {w}x{h} cells are not whole pixels of {c}x{c} cells")
+            lum = lum.reshape(kk, h // c, c, w // c, c).mean(axis=(2, 4))
+        y = np.tensordot(self.mixtures, lum, axes=1)  # (M + 1, H, W) pixels
         half = 0 if self._half_spp[0] <= self._half_spp[1] else 1
         weighted = images.astype(np.float64) * spp
         if self._p is None or self._q is None or self._c is None:

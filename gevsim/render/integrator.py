@@ -55,7 +55,7 @@ def _group_of(emitter, group_ptrs):
 
 
 def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int, max_depth: int,
-                  rr_depth: int = 5) -> np.ndarray:
+                  rr_depth: int = 5, grid: Any = None) -> np.ndarray:
     """Render K light-group images of ``scene`` from one set of paths.
 
     Parameters
@@ -67,10 +67,14 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
     seed : sampler seed; different seeds give independent images.
     max_depth : longest path, as Mitsuba's ``path`` (1: emitters seen directly).
     rr_depth : depth from which Russian roulette may end paths.
+    grid : a :class:`~gevsim.render.rays.PinholeGrid` to render instead of the sensor's film (its
+        cells are the pixels; the sensor's sampler still draws the samples). With the sensor's own
+        grid (:func:`~gevsim.render.rays.sensor_grid`) the rays, and so the image, are the sensor's.
 
     Returns
     -------
-    float32 (K, H, W, C) radiance: C = 1 in mono variants, else 3 (linear sRGB).
+    float32 (K, H, W, C) radiance: C = 1 in mono variants, else 3 (linear sRGB); H, W the grid's
+    when one is given.
     """
     import drjit as dr
     import mitsuba as mi
@@ -83,7 +87,9 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
     group_ptrs = [[mi.EmitterPtr(e) for e in g] for g in groups]
     sensor = scene.sensors()[0]
     film = sensor.film()
-    width, height = (int(v) for v in film.crop_size())
+    width, height = (int(v) for v in film.crop_size()) if grid is None else (grid.width, grid.height)
+    if grid is not None and mi.is_spectral:
+        raise ValueError("render_groups: a PinholeGrid needs an RGB or mono variant (its rays carry no wavelengths)")
     sampler = sensor.sampler().clone()
     sampler.set_sample_count(spp)
     spp = sampler.sample_count()
@@ -96,9 +102,14 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
     # Primary rays: sample i belongs to pixel i // spp, jittered uniformly inside it.
     pixel = dr.arange(mi.UInt32, n_paths) // spp
     px = mi.Vector2f(mi.Float(pixel % width), mi.Float(pixel // width)) + sampler.next_2d()
-    wavelength_sample = sampler.next_1d() if mi.is_spectral else mi.Float(0.5)
-    ray, ray_weight = sensor.sample_ray(sensor.shutter_open(), wavelength_sample,
-                                        px / mi.ScalarVector2f(width, height), mi.Point2f(0.5))
+    if grid is None:
+        wavelength_sample = sampler.next_1d() if mi.is_spectral else mi.Float(0.5)
+        ray, ray_weight = sensor.sample_ray(sensor.shutter_open(), wavelength_sample,
+                                            px / mi.ScalarVector2f(width, height), mi.Point2f(0.5))
+    else:
+        from gevsim.render.rays import primary_rays
+
+        ray, ray_weight = primary_rays(grid, px, near_clip_m=float(sensor.near_clip())), mi.Spectrum(1.0)
 
     bsdf_ctx = mi.BSDFContext()
 

@@ -19,13 +19,17 @@ from gevsim.resources import MAX_SPP
 
 #: The keys of the noise-target mode (:class:`RenderSettings`).
 QUALITY_KEYS = ("noise_target_ln", "noise_percentile", "max_spp", "time_budget_s", "sampler", "noise_floor_rel",
-                "noise_metric", "denoise")
+                "noise_metric", "denoise", "reuse")
 #: Every ``[render]`` key of a scene manifest.
 RENDER_KEYS = ("width", "height", "spp", "seed", "flavour", "max_depth", "max_px_per_pose") + QUALITY_KEYS
 #: ``[render]`` keys that emulation, study and dataset configs may override.
 OVERRIDE_KEYS = ("width", "height", "spp", "seed", "max_px_per_pose") + QUALITY_KEYS
 #: Mitsuba samplers a scene may use (``[render] sampler``).
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+#: How a moving scene's poses get their images (``[render] reuse``, :mod:`gevsim.render.poses`): ``"none"``
+#: renders every pose alone; ``"rotation"`` resamples a camera turning about a fixed centre from one wider
+#: render (:mod:`gevsim.render.rotation`); ``"auto"`` takes the first that applies.
+REUSE = ("auto", "none", "rotation")
 #: ``noise_target_ln = "auto"``: this fraction of the smallest event threshold. Measured on the office
 #: (128x96, ideal sensor, benchmarks/flicker_convergence.py): at a p99 flicker-metric error of 0.4 x 0.05 ln
 #: (~9000 spp) the flicker-induced gradient rate is +3.7 % and +8.3 % (two seeds) above a 65536-spp reference,
@@ -42,6 +46,7 @@ __all__ = [
     "OVERRIDE_KEYS",
     "QUALITY_KEYS",
     "RENDER_KEYS",
+    "REUSE",
     "SAMPLERS",
     "RenderSettings",
     "check_render_overrides",
@@ -70,6 +75,7 @@ class RenderSettings:
     (``"absolute"``). ``denoise = true`` passes the finished group images
     through Intel Open Image Denoise (:mod:`gevsim.render.denoise`): biased,
     off by default; its bias is measured in ``benchmarks/README.md``.
+    ``reuse`` chooses how the poses of a moving scene are rendered (:data:`REUSE`).
     """
 
     width: int = 346
@@ -87,6 +93,7 @@ class RenderSettings:
     noise_floor_rel: float = 1e-3
     noise_metric: str = "flicker"
     denoise: bool = False
+    reuse: str = "auto"
 
     @property
     def targeted(self) -> bool:
@@ -170,7 +177,8 @@ def quality_settings(table: dict, r: TomlReader, where: str) -> dict:
         if not isinstance(table["denoise"], bool):
             r.fail(f"{where}.denoise", f"expected true or false, got {table['denoise']!r}")
         out["denoise"] = table["denoise"]
-    for key, what, options in (("noise_metric", "noise metric", NOISE_METRICS), ("sampler", "sampler", SAMPLERS)):
+    for key, what, options in (("noise_metric", "noise metric", NOISE_METRICS), ("sampler", "sampler", SAMPLERS),
+                               ("reuse", "reuse method", REUSE)):
         if key in table:
             value = table[key]
             if value not in options:

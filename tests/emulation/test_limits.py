@@ -61,7 +61,7 @@ def test_frames_that_do_not_fit_on_the_disk_are_refused(tmp_path, capsys, monkey
     monkeypatch.setattr("gevsim._resources.free_disk_bytes", lambda path: 10_000)
     err = refused(tmp_path, capsys, emulation(tmp_path, emulation="duration_s = 0.004"))
     assert "run.toml: emulation.frame_rate_hz: 5 ground-truth frames of 24x18 px (frame_rate_hz = 1000 over " \
-           "0.004 s) take up to 16.9 KiB; 9.77 KiB are free where" in err
+           "0.004 s) take up to 42.2 KiB; 9.77 KiB are free where" in err
 
 
 @pytest.mark.parametrize("width, height", [(7680, 4320), (346, 260), (1280, 720)])

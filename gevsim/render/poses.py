@@ -1,0 +1,195 @@
+"""How a scene's poses get their basis images: a registry of reuse methods.
+
+``[render] reuse`` names one (:data:`gevsim.render.quality.REUSE`):
+
+- ``"none"``: every pose is rendered alone to the noise target (:func:`render_each`).
+- ``"rotation"``: a camera turning about a fixed centre, nothing else moving: the
+  poses are resamplings of one wider render (:func:`render_rotation`,
+  :mod:`gevsim.render.rotation`).
+- ``"auto"``: the first method that applies, in the order of :data:`METHODS`
+  (``"none"`` always does; it is tried last).
+
+Each method returns a :class:`PoseImages` for the poses' times; every image is
+cached (:class:`~gevsim.render.basis_cache.RenderCache`) under a key of what
+fixes it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+import gevsim
+from gevsim.errors import ConfigError
+from gevsim.render import rotation
+from gevsim.render.basis_cache import RenderCache, cache_key
+from gevsim.render.convergence import error_percentiles
+from gevsim.render.manifest_checks import check_rendered
+from gevsim.render.scene import MitsubaScene, content_hash
+
+log = logging.getLogger("gevsim.render.basis")
+
+Progress = Callable[[int, int], None] | None
+
+
+@dataclass
+class PoseImages:
+    """Per pose: (K, H, W, C) images and noise samples, cache keys, quality records and render seconds."""
+
+    images: list
+    noise: list
+    keys: list
+    quality: list
+    seconds: np.ndarray
+
+
+def _meta(scene: MitsubaScene, request: dict, report: dict, t_s: float, **extra) -> dict:
+    r = scene.manifest.render
+    return {"groups": list(scene.manifest.group_names), "t_s": float(t_s), "scene": scene.manifest.name,
+            "variant": scene.variant.variant, "gevsim": gevsim.__version__, "spp": report["spp"], "report": report,
+            "mixtures": request["mixtures"].tolist(), "floor_rel": request["floor_rel"],
+            "metric": request["metric"], "time_budget_s": request["time_budget_s"], "sampler": r.sampler,
+            "one_pass": scene.one_pass, "denoised": bool(r.denoise), **extra}
+
+
+def _budget(request: dict, started: float, left: int) -> float | None:
+    """Seconds a render may take: an equal share of what is left of the time budget."""
+    if request["time_budget_s"] is None:
+        return None
+    return max(0.0, request["time_budget_s"] - (time.perf_counter() - started)) / max(left, 1)
+
+
+def render_each(scene: MitsubaScene, times: np.ndarray, request: dict, cache: RenderCache,
+                progress: Progress) -> PoseImages:
+    """Every pose rendered alone (or read from the cache) to the request."""
+    from gevsim.render import basis
+
+    m = scene.manifest
+    out = PoseImages([], [], [], [], np.zeros(len(times)))
+    started = time.perf_counter()
+    for p, t in enumerate(times):
+        pose = scene.pose_at(float(t))
+        key = cache_key(scene, pose)
+        cached = cache.read(key, m.group_names, (m.render.height, m.render.width), request)
+        if cached is not None:
+            mean, err, _, meta = cached
+            out.quality.append(meta["report"])
+        else:
+            scene.set_pose(pose)
+            mean, err, se_map, report = basis.render_pose(scene, request,
+                                                          budget_s=_budget(request, started, len(times) - p))
+            check_rendered(mean, source=m.source, t_s=float(t))
+            out.seconds[p] = report.seconds
+            out.quality.append(report.as_dict())
+            cache.write(key, mean, err, se_map, _meta(scene, request, report.as_dict(), t))
+        out.images.append(mean)
+        out.noise.append(err)
+        out.keys.append(key)
+        if progress:
+            progress(p + 1, len(times))
+    return out
+
+
+def rotation_applies(scene: MitsubaScene, times: np.ndarray) -> str | None:
+    """Why rotation reuse cannot render these poses, or None when it can."""
+    m = scene.manifest
+    if len(times) < 2:
+        return "one pose"
+    if m.motion:
+        return "objects move"
+    if not scene.one_pass or "spectral" in scene.variant.variant:
+        return f"the {scene.variant.variant} variant has no one-pass integrator"
+    if m.render.denoise:
+        return "denoise = true (the denoiser works on whole images of one pose)"
+    cameras = [scene.pose_at(float(t)).camera for t in times]
+    if not rotation.same_centre(cameras):
+        return "the camera moves (only a camera turning about a fixed centre is a resampling)"
+    try:
+        for seg in rotation.plan(cameras, fov_deg=m.fov_deg, width=m.render.width, height=m.render.height):
+            for p in seg.poses:
+                rotation.footprints(seg.grid, cameras[p], width=m.render.width, height=m.render.height)
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
+def _grid_key(scene: MitsubaScene, grid) -> str:
+    r = scene.manifest.render
+    payload = {"scene": content_hash(scene.manifest), "inputs": scene.inputs_digest, "grid": grid.key(),
+               "groups": list(scene.manifest.group_names), "seed": r.seed, "sampler": r.sampler,
+               "variant": scene.variant.variant, "method": "rotation", "version": rotation.CACHE_VERSION}
+    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:32]
+
+
+def render_rotation(scene: MitsubaScene, times: np.ndarray, request: dict, cache: RenderCache,
+                    progress: Progress) -> PoseImages:
+    """Poses of a camera turning about a fixed centre, resampled from one render per segment
+    (:func:`gevsim.render.rotation.plan`): its seconds are booked on the segment's first pose."""
+    from gevsim.render import basis
+
+    m, r = scene.manifest, scene.manifest.render
+    cameras = [scene.pose_at(float(t)).camera for t in times]
+    segments = rotation.plan(cameras, fov_deg=m.fov_deg, width=r.width, height=r.height)
+    out = PoseImages([], [], [], [], np.zeros(len(times)))
+    started = time.perf_counter()
+    done = 0
+    for i, seg in enumerate(segments):
+        g = seg.grid
+        key = _grid_key(scene, g)
+        ref = seg.poses[(len(seg.poses) - 1) // 2]
+        # EXR layers share one size: the pixels' error map is stored at cell resolution, each value repeated.
+        cached = cache.read(key, m.group_names, (g.height, g.width), request)
+        if cached is not None:
+            mean, err, se_cells, meta = cached
+            se_map, report = se_cells[::g.sub, ::g.sub], meta["report"]
+        else:
+            scene.set_pose(scene.pose_at(float(times[ref])))
+            mean, err, se_map, noise_report = basis.render_pose(
+                scene, request, budget_s=_budget(request, started, len(segments) - i), grid=g)
+            check_rendered(mean, source=m.source, t_s=float(times[ref]))
+            report = noise_report.as_dict()
+            out.seconds[seg.poses[0]] = noise_report.seconds
+            se_cells = np.repeat(np.repeat(se_map, g.sub, axis=0), g.sub, axis=1)
+            cache.write(key, mean, err, se_cells, _meta(scene, request, report, times[ref], reuse="rotation",
+                                                        grid=g.key()))
+        for p in seg.poses:
+            rect = rotation.footprints(g, cameras[p], width=r.width, height=r.height)
+            out.images.append(rotation.box_resample(mean, rect))
+            out.noise.append(rotation.box_resample(err, rect))
+            se = rotation.pixel_error(se_map, g, rect)
+            out.quality.append({**report, "se_ln": {**report["se_ln"],
+                                                    **error_percentiles(se, request["percentile"])},
+                                "seconds": out.seconds[p], "reuse": "rotation", "reference_t_s": float(times[ref])})
+            out.keys.append(f"{key}/{p - seg.poses[0]}")
+            done += 1
+            if progress:
+                progress(done, len(times))
+    log.info("rotation reuse: %d poses from %d render(s) of %s cells", len(times), len(segments),
+             ", ".join(f"{s.grid.width}x{s.grid.height}" for s in segments))
+    return out
+
+
+#: Reuse methods in the order ``"auto"`` tries them: name -> (why it does not apply or None, renderer).
+METHODS: dict[str, tuple[Callable[[MitsubaScene, np.ndarray], str | None], Callable[..., PoseImages]]] = {
+    "rotation": (rotation_applies, render_rotation),
+    "none": (lambda scene, times: None, render_each),
+}
+
+
+def choose(scene: MitsubaScene, times: np.ndarray) -> str:
+    """The reuse method for these poses: ``[render] reuse``, or the first that applies for ``"auto"``.
+    A named method that does not apply is a ConfigError saying why."""
+    wanted = scene.manifest.render.reuse
+    if wanted != "auto":
+        why = METHODS[wanted][0](scene, times)
+        if why is not None:
+            raise ConfigError(f"reuse = {wanted!r} cannot render this scene: {why}", source=scene.manifest.source,
+                              key="render.reuse")
+        return wanted
+    return next(name for name, (applies, _) in METHODS.items() if applies(scene, times) is None)
