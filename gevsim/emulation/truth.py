@@ -35,7 +35,7 @@ def write_frames(wr, setup, frame_t, dark, aps, aps_rng, config) -> None:
             wr.append_frame(layout.APS, aps.read(electrons, config.aps_exposure_s, rng=aps_rng), t_us,
                             **layout.FRAME_ATTRS[layout.APS])
     if len(frame_t):
-        wr.set_attrs("/frames", units="ln(A) for log_photocurrent*, DN for aps, m for depth, px for flow")
+        wr.set_attrs("/frames", units="ln(A) for log_photocurrent*, DN for aps")
     if aps is not None and len(frame_t) > 1:
         p = aps.params
         wr.set_attrs(f"/frames/{layout.APS}", offset_dn=p.offset_dn, system_gain_dn_per_e=p.system_gain_dn_per_e,
@@ -59,6 +59,7 @@ def write_geometry(wr, scene, frame_t, dt_s: float) -> None:
         linear.append(truth.linear_velocity_m_s)
         angular.append(truth.angular_velocity_rad_s)
         t_us.append(us)
+    wr.set_attrs("/frames", units="ln(A) for log_photocurrent*, DN for aps, m for depth, px for flow")
     wr.write_array(layout.POSES_T, np.array(t_us, np.int64), units="us", meaning="time of each pose (the frames')")
     wr.write_array(layout.POSES_CAMERA, np.array(cameras), units="m",
                    meaning="camera-to-world 4x4 (columns: x left, y up, z forward in the image, centre), "

@@ -142,22 +142,26 @@ def _overlaps(lo: np.ndarray, hi: np.ndarray, size: int) -> list[tuple[np.ndarra
     return out
 
 
-def box_resample(cells: np.ndarray, rect: np.ndarray) -> np.ndarray:
+def box_resample(cells: np.ndarray, rect: np.ndarray, *, power: int = 1) -> np.ndarray:
     """(K, H, W, C) float32: the mean of the piecewise-constant image ``cells`` (K, Hc, Wc, C) over each
     rectangle ``rect`` (4, H, W; x0, y0, x1, y1 in cell units, :func:`footprints`): a sum over the cells
-    each rectangle overlaps, weighted by the overlap's area (exact, and never negative for a
-    non-negative image)."""
+    each rectangle overlaps, weighted by the overlap's share of the rectangle's area (exact, and never
+    negative for a non-negative image). ``power = 2`` sums with the squared weights instead: the
+    variance of that mean when ``cells`` holds independent cells' variances."""
     x0, y0, x1, y1 = rect
+    area = (x1 - x0) * (y1 - y0)
     total = np.zeros((cells.shape[0], *x0.shape, cells.shape[3]))
     for iy, wy in _overlaps(y0, y1, cells.shape[1]):
         for ix, wx in _overlaps(x0, x1, cells.shape[2]):
-            total += (wy * wx)[None, ..., None] * cells[:, iy, ix]
-    return (total / ((x1 - x0) * (y1 - y0))[None, ..., None]).astype(np.float32)
+            total += ((wy * wx / area) ** power)[None, ..., None] * cells[:, iy, ix]
+    return total.astype(np.float32)
 
 
 def pixel_error(se_map: np.ndarray, grid: PinholeGrid, rect: np.ndarray) -> np.ndarray:
     """(H, W) float32 ln standard error of a pose's pixels from the reference's pixel error map
-    ``se_map``: the root of the variance map's mean over the footprint (what the reference pixels
-    it covers carry)."""
-    var = np.square(se_map.astype(np.float64))[None, ..., None]
-    return np.sqrt(box_resample(var, rect / grid.sub)[0, ..., 0])
+    ``se_map``: a cell holds 1/sub^2 of its pixel's samples (variance sub^2 times the pixel's), cells
+    are independent, and a pose pixel is a weighted mean of cells (variance: the sum of squared
+    weights times theirs; equal to its reference pixel's where the footprints coincide)."""
+    var = np.square(se_map.astype(np.float64)) * grid.sub**2
+    cells = np.repeat(np.repeat(var, grid.sub, axis=0), grid.sub, axis=1)[None, ..., None]
+    return np.sqrt(box_resample(cells, rect, power=2)[0, ..., 0])
