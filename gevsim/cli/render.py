@@ -49,10 +49,12 @@ def cmd_render(args: argparse.Namespace) -> int:
     info = write_render(args.out, manifest, basis, variant=scene.variant, frame_rate_hz=args.frames,
                         exposure_s=args.exposure, plots=args.plots)
     per = basis.render_s[basis.render_s > 0]
-    timing = f", {per.mean():.2f} s per pose" if per.size else ""
+    timing = f", {per.mean():.2f} s per render" if per.size else ""
     q = basis.noise_summary()
-    print(f"gevsim: {len(basis.times_s)} poses x {len(basis.groups)} light groups, {rendered} poses rendered, "
-          f"{basis.render_s.size - rendered} from cache{timing}; {q['spp_min']}-{q['spp_max']} spp, "
+    renders = len({str(k).split("/")[0] for k in basis.keys})  # a reused render's poses share its key
+    how = "" if renders == len(basis.times_s) else f" resampled from {renders} {basis.quality[0]['reuse']} render(s)"
+    print(f"gevsim: {len(basis.times_s)} poses x {len(basis.groups)} light groups{how}, {rendered} rendered, "
+          f"{renders - rendered} from cache{timing}; {q['spp_min']}-{q['spp_max']} spp, "
           f"p{q['percentile']:g} ln error {q['se_ln']['at_percentile']:.4g}"
           f"{'' if q['reached'] else ' (target NOT reached: ' + ', '.join(q['stopped_by']) + ')'}; "
           f"{len(info.get('frames', {}).get('t_s', []))} frames; wrote {args.out} "

@@ -51,9 +51,9 @@ def test_render_writes_basis_frames_and_manifest(scene_dir, tmp_path, capsys):
     # PWM at 1 kHz, duty 0.25: frame 0 (t = 0) is in the on phase, frame 2 (0.5 ms) in the off phase.
     lux = info["frames"]["mean_lux"]
     assert lux[0] > 2 * lux[2]
-    assert "1 poses rendered, 0 from cache" in capsys.readouterr().err
+    assert "1 rendered, 0 from cache" in capsys.readouterr().err
     assert main(args + SMALL) == 0
-    assert "0 poses rendered, 1 from cache" in capsys.readouterr().err
+    assert "0 rendered, 1 from cache" in capsys.readouterr().err
     assert not list(tmp_path.glob(".out.*"))
 
 
