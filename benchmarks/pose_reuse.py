@@ -9,6 +9,7 @@ error, rates and their ratio to brute force.
 
     python benchmarks/pose_reuse.py --scene scenes/office_pan.toml --size 64x48
     python benchmarks/pose_reuse.py --scene scenes/office_pan.toml --size 346x260 --no-brute --poses 3
+    python benchmarks/pose_reuse.py --scene scenes/office_dolly.toml --reuse parallax --subs 3
 
 ``--no-brute --poses N`` times N brute-force poses only (their mean time per pose
 scales to the whole sequence) where the full brute force is unaffordable.
@@ -68,7 +69,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", default="scenes/office_pan.toml")
     ap.add_argument("--size", default="64x48")
-    ap.add_argument("--subs", default="1,2,3", help="cells per pixel of the rotation reference render")
+    ap.add_argument("--reuse", default="rotation", help="the reuse method to compare with brute force")
+    ap.add_argument("--subs", default="1,2,3", help="cells per pixel of the reference render")
     ap.add_argument("--spp", type=int, default=None, help="fixed spp instead of the scene's noise target")
     ap.add_argument("--no-brute", action="store_true", help="time only --poses brute-force poses")
     ap.add_argument("--poses", type=int, default=3)
@@ -86,7 +88,7 @@ def main() -> None:
     rows = []
     try:
         subs = [int(s) for s in args.subs.split(",") if s]
-        methods = [("rotation", s) for s in subs] + [("none", None)]
+        methods = [(args.reuse, s) for s in subs] + [("none", None)]
         results = {}
         for reuse, sub in methods:
             cache = tmp / f"cache_{reuse}{sub or ''}"

@@ -76,7 +76,7 @@ def batch_seed(seed: int, batch: int) -> int:
 
 def render_pose(
     scene: MitsubaScene, request: dict, *, budget_s: float | None = None, one_pass: bool | None = None,
-    grid: PinholeGrid | None = None,
+    grid: PinholeGrid | None = None, pixels: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, NoiseReport]:
     """Render the current pose's K group images in batches until the request is met.
 
@@ -89,17 +89,18 @@ def render_pose(
     ``grid`` renders a :class:`~gevsim.render.rays.PinholeGrid` instead of the film: images and
     noise come at its cell resolution, the error map and the request's samples per pixel
     are of its pixels (``grid.sub`` x ``grid.sub`` cells, each with 1 / sub^2 of the samples).
+    ``pixels`` (flat indices into ``grid``, whose sub must be 1) renders only those: images (K, 1, N, C).
     """
     r = scene.manifest.render
     per = 1 if grid is None else grid.sub**2  # cells a pixel's samples are spread over
     acc = BatchAccumulator(request["mixtures"], floor_rel=request["floor_rel"], metric=request["metric"],
                            cells=1 if grid is None else grid.sub)
-    cells = r.width * r.height if grid is None else grid.width * grid.height
+    cells = r.width * r.height if grid is None else grid.width * grid.height if pixels is None else len(pixels)
     cap = max(1, MAX_BATCH_PATHS // cells)  # samples per cell
     target = request["target_ln"]
     start = time.perf_counter()
 
-    on_grid = {} if grid is None else {"grid": grid}
+    on_grid = {} if grid is None else {"grid": grid} if pixels is None else {"grid": grid, "pixels": pixels}
 
     def batch(spp: int) -> None:  # samples per cell
         images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches), one_pass=one_pass, **on_grid)

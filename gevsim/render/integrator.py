@@ -141,7 +141,7 @@ def _group_of(emitter, group_ptrs):
 
 
 def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int, max_depth: int,
-                  rr_depth: int = 5, grid: Any = None) -> np.ndarray:
+                  rr_depth: int = 5, grid: Any = None, pixels: Any = None) -> np.ndarray:
     """Render K light-group images of ``scene`` from one set of paths.
 
     Parameters
@@ -156,11 +156,13 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
     grid : a :class:`~gevsim.render.rays.PinholeGrid` to render instead of the sensor's film (its
         cells are the pixels; the sensor's sampler still draws the samples). With the sensor's own
         grid (:func:`~gevsim.render.rays.sensor_grid`) the rays, and so the image, are the sensor's.
+    pixels : flat indices (row * width + column) of the only pixels to render (those a reuse
+        method could not reuse); all when None.
 
     Returns
     -------
     float32 (K, H, W, C) radiance: C = 1 in mono variants, else 3 (linear sRGB); H, W the grid's
-    when one is given.
+    when one is given; (K, 1, N, C) for N ``pixels``.
     """
     import drjit as dr
     import mitsuba as mi
@@ -180,13 +182,15 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
     sampler.set_sample_count(spp)
     spp = sampler.sample_count()
     sampler.set_samples_per_wavefront(spp)
-    n_paths = width * height * spp
+    n_pixels = width * height if pixels is None else len(pixels)
+    n_paths = n_pixels * spp
     if n_paths >= 2**32:
         raise ValueError(f"render_groups: {width}x{height} at {spp} spp is over 2^32 paths; render in batches")
     sampler.seed(seed, n_paths)
 
     # Primary rays: sample i belongs to pixel i // spp, jittered uniformly inside it.
-    pixel = dr.arange(mi.UInt32, n_paths) // spp
+    local = dr.arange(mi.UInt32, n_paths) // spp  # the pixel's place in the output
+    pixel = local if pixels is None else dr.gather(mi.UInt32, mi.UInt32(np.asarray(pixels, np.uint32)), local)
     px = mi.Vector2f(mi.Float(pixel % width), mi.Float(pixel // width)) + sampler.next_2d()
     if grid is None:
         wavelength_sample = sampler.next_1d() if mi.is_spectral else mi.Float(0.5)
@@ -304,14 +308,15 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
     acc = state[-1]
 
     channels = 1 if mi.is_monochromatic else 3
-    image = dr.zeros(mi.Float, k_groups * width * height * channels)
+    image = dr.zeros(mi.Float, k_groups * n_pixels * channels)
     for k, value in enumerate(acc):
         if mi.is_spectral:
             value = mi.spectrum_to_srgb(value, ray.wavelengths)
         parts = [value.x] if channels == 1 else [value.x, value.y, value.z]
         for c, part in enumerate(parts):
-            dr.scatter_reduce(dr.ReduceOp.Add, image, part, (k * width * height + pixel) * channels + c)
-    out = np.array(image, dtype=np.float64).reshape(k_groups, height, width, channels) / spp
+            dr.scatter_reduce(dr.ReduceOp.Add, image, part, (k * n_pixels + local) * channels + c)
+    shape = (height, width) if pixels is None else (1, n_pixels)
+    out = np.array(image, dtype=np.float64).reshape(k_groups, *shape, channels) / spp
     return out.astype(np.float32)
 
 

@@ -99,14 +99,9 @@ def render_each(scene: MitsubaScene, times: np.ndarray, request: dict, cache: Re
 def rotation_applies(scene: MitsubaScene, times: np.ndarray) -> str | None:
     """Why rotation reuse cannot render these poses, or None when it can."""
     m = scene.manifest
-    if len(times) < 2:
-        return "one pose"
-    if m.motion:
-        return "objects move"
-    if not scene.one_pass or "spectral" in scene.variant.variant:
-        return f"the {scene.variant.variant} variant has no one-pass integrator"
-    if m.render.denoise:
-        return "denoise = true (the denoiser works on whole images of one pose)"
+    why = _jit_single_view(scene, times)
+    if why is not None:
+        return why
     cameras = [scene.pose_at(float(t)).camera for t in times]
     if not rotation.same_centre(cameras):
         return "the camera moves (only a camera turning about a fixed centre is a resampling)"
@@ -119,11 +114,11 @@ def rotation_applies(scene: MitsubaScene, times: np.ndarray) -> str | None:
     return None
 
 
-def _grid_key(scene: MitsubaScene, grid) -> str:
+def _grid_key(scene: MitsubaScene, grid, method: str = "rotation") -> str:
     r = scene.manifest.render
     payload = {"scene": content_hash(scene.manifest), "inputs": scene.inputs_digest, "grid": grid.key(),
                "groups": list(scene.manifest.group_names), "seed": r.seed, "sampler": r.sampler,
-               "variant": scene.variant.variant, "method": "rotation", "version": rotation.CACHE_VERSION}
+               "variant": scene.variant.variant, "method": method, "version": rotation.CACHE_VERSION}
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:32]
 
 
@@ -175,9 +170,118 @@ def render_rotation(scene: MitsubaScene, times: np.ndarray, request: dict, cache
     return out
 
 
+def parallax_applies(scene: MitsubaScene, times: np.ndarray) -> str | None:
+    """Why parallax reuse cannot render these poses, or None when it can."""
+    from gevsim.render import parallax
+
+    why = _jit_single_view(scene, times)
+    if why is not None:
+        return why
+    if rotation.same_centre([scene.pose_at(float(t)).camera for t in times]):
+        return "the camera does not move (rotation reuse serves a turning camera)"
+    return parallax.view_independent(scene)
+
+
+def _jit_single_view(scene: MitsubaScene, times: np.ndarray) -> str | None:
+    """What every reuse method needs: several poses, nothing but the camera moving, a one-pass variant, no denoiser."""
+    m = scene.manifest
+    if len(times) < 2:
+        return "one pose"
+    if m.motion:
+        return "objects move"
+    if not scene.one_pass or "spectral" in scene.variant.variant:
+        return f"the {scene.variant.variant} variant has no one-pass integrator"
+    if m.render.denoise:
+        return "denoise = true (the denoiser works on whole images of one pose)"
+    return None
+
+
+def render_parallax(scene: MitsubaScene, times: np.ndarray, request: dict, cache: RenderCache,
+                    progress: Progress) -> PoseImages:
+    """Poses of a camera moving through a static, view-independent scene: each pixel reprojected from
+    its segment's reference render where that is exact, rendered anew where not
+    (:mod:`gevsim.render.parallax`)."""
+    from gevsim.render import basis, parallax
+    from gevsim.render.rays import sensor_grid
+
+    m, r = scene.manifest, scene.manifest.render
+    cameras = [scene.pose_at(float(t)).camera for t in times]
+    segments = parallax.plan(scene, cameras, sub=rotation.SUB)
+    out = PoseImages([], [], [], [], np.zeros(len(times)))
+    started = time.perf_counter()
+    done = 0
+    for i, seg in enumerate(segments):
+        g = seg.grid
+        key = _grid_key(scene, g, "parallax")
+        ref = seg.poses[(len(seg.poses) - 1) // 2]
+        window = None
+        for p in seg.poses:
+            pose = scene.pose_at(float(times[p]))
+            pose_key = hashlib.sha256(json.dumps([key, pose.key()], sort_keys=True).encode()).hexdigest()[:32]
+            cached = cache.read(pose_key, m.group_names, (r.height, r.width), request)
+            if cached is not None:
+                images, noise, _, meta = cached
+                out.quality.append(meta["report"])
+            else:
+                if window is None:
+                    window = _window_render(scene, g, key, times[ref], request, cache,
+                                            _budget(request, started, len(segments) - i), out, seg.poses[0])
+                tick = time.perf_counter()
+                mean, err, se_map, report = window
+                rect, ok = parallax.reproject(scene, g, pose.camera)
+                images, noise = rotation.box_resample(mean, rect), rotation.box_resample(err, rect)
+                se = rotation.pixel_error(se_map, g, rect)
+                todo = np.flatnonzero(~ok)
+                spp_min = report["spp"]
+                if todo.size:
+                    scene.set_pose(pose)
+                    grid = sensor_grid(pose.camera, fov_deg=m.fov_deg, width=r.width, height=r.height)
+                    sub_mean, sub_err, sub_se, sub_report = basis.render_pose(scene, request, grid=grid, pixels=todo)
+                    rows, cols = np.divmod(todo, r.width)
+                    images[:, rows, cols], noise[:, rows, cols] = sub_mean[:, 0], sub_err[:, 0]
+                    se[rows, cols] = sub_se[0]
+                    spp_min = min(spp_min, sub_report.spp)
+                out.seconds[p] += time.perf_counter() - tick
+                quality = {**report, "spp": spp_min, "seconds": float(out.seconds[p]), "reuse": "parallax",
+                           "reused_fraction": float(ok.mean()), "reference_t_s": float(times[ref]),
+                           "se_ln": {**report["se_ln"], **error_percentiles(se, request["percentile"])}}
+                out.quality.append(quality)
+                cache.write(pose_key, images, noise, se, _meta(scene, request, quality, times[p], reuse="parallax"))
+            out.images.append(images)
+            out.noise.append(noise)
+            out.keys.append(pose_key)
+            done += 1
+            if progress:
+                progress(done, len(times))
+    fractions = [q.get("reused_fraction", 1.0) for q in out.quality]
+    log.info("parallax reuse: %d poses from %d reference render(s); %.1f %% of pixels reused (%.1f-%.1f %% a pose)",
+             len(times), len(segments), 100 * np.mean(fractions), 100 * min(fractions), 100 * max(fractions))
+    return out
+
+
+def _window_render(scene, g, key, t_ref, request, cache, budget, out, first) -> tuple:
+    """The reference window's (mean, noise, pixel error map, report dict), from the cache or rendered."""
+    from gevsim.render import basis
+
+    m = scene.manifest
+    cached = cache.read(key, m.group_names, (g.height, g.width), request)
+    if cached is not None:
+        mean, err, se_cells, meta = cached
+        return mean, err, se_cells[::g.sub, ::g.sub], meta["report"]
+    scene.set_pose(scene.pose_at(float(t_ref)))
+    mean, err, se_map, noise_report = basis.render_pose(scene, request, budget_s=budget, grid=g)
+    check_rendered(mean, source=m.source, t_s=float(t_ref))
+    report = noise_report.as_dict()
+    out.seconds[first] += noise_report.seconds
+    se_cells = np.repeat(np.repeat(se_map, g.sub, axis=0), g.sub, axis=1)
+    cache.write(key, mean, err, se_cells, _meta(scene, request, report, t_ref, reuse="window", grid=g.key()))
+    return mean, err, se_map, report
+
+
 #: Reuse methods in the order ``"auto"`` tries them: name -> (why it does not apply or None, renderer).
 METHODS: dict[str, tuple[Callable[[MitsubaScene, np.ndarray], str | None], Callable[..., PoseImages]]] = {
     "rotation": (rotation_applies, render_rotation),
+    "parallax": (parallax_applies, render_parallax),
     "none": (lambda scene, times: None, render_each),
 }
 

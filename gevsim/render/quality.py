@@ -29,7 +29,7 @@ SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler
 #: How a moving scene's poses get their images (``[render] reuse``, :mod:`gevsim.render.poses`): ``"none"``
 #: renders every pose alone; ``"rotation"`` resamples a camera turning about a fixed centre from one wider
 #: render (:mod:`gevsim.render.rotation`); ``"auto"`` takes the first that applies.
-REUSE = ("auto", "none", "rotation")
+REUSE = ("auto", "none", "rotation", "parallax")
 #: ``noise_target_ln = "auto"``: this fraction of the smallest event threshold. Measured on the office
 #: (128x96, ideal sensor, benchmarks/flicker_convergence.py): at a p99 flicker-metric error of 0.4 x 0.05 ln
 #: (~9000 spp) the flicker-induced gradient rate is +3.7 % and +8.3 % (two seeds) above a 65536-spp reference,

@@ -328,14 +328,16 @@ class MitsubaScene:
         sampler.set_sample_count(int(spp))
         return int(sampler.sample_count())
 
-    def render_groups(self, *, spp: int, seed: int, one_pass: bool | None = None, grid=None) -> np.ndarray:
+    def render_groups(self, *, spp: int, seed: int, one_pass: bool | None = None, grid=None,
+                      pixels=None) -> np.ndarray:
         """(K, H, W, C) radiance of every light group at the current pose, from ``spp`` samples.
 
         In JIT variants one set of paths serves all groups
         (:func:`gevsim.render.integrator.render_groups`); in scalar variants
         each group is rendered alone with Mitsuba's ``path`` and the same seed
         (``one_pass=False`` forces that, for comparisons). ``grid`` (a
-        :class:`~gevsim.render.rays.PinholeGrid`, one-pass only) renders its cells instead of the film.
+        :class:`~gevsim.render.rays.PinholeGrid`, one-pass only) renders its cells instead of the film, and
+        ``pixels`` (flat indices into it) only those cells.
         """
         names = self.manifest.group_names
         if grid is not None and not (self.one_pass and one_pass is not False):
@@ -347,7 +349,7 @@ class MitsubaScene:
                 groups = integrator.group_emitters(self.scene, [self.group(n).emitters for n in names])
                 self._group_emitters = groups
             return integrator.render_groups(self.scene, groups, spp=spp, seed=seed,
-                                            max_depth=self.manifest.render.max_depth, grid=grid)
+                                            max_depth=self.manifest.render.max_depth, grid=grid, pixels=pixels)
         images = []
         for name in names:
             self.set_groups({name})
