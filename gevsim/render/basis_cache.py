@@ -20,8 +20,9 @@ from gevsim.render.trajectory import Pose
 
 log = logging.getLogger("gevsim.render.basis")
 
-#: Bump when the cached file layout or the estimator changes.
-CACHE_VERSION = 2
+#: Bump when the cached file layout or the estimator changes (3: light-vertex connection and one emitter sample
+#: per light group in the one-pass integrator, issue 25: the same expectation, other random numbers and noise).
+CACHE_VERSION = 3
 
 def default_cache_dir() -> Path:
     """``$GEVSIM_CACHE``, else ``$XDG_CACHE_HOME/gevsim``, else ``~/.cache/gevsim``."""
