@@ -89,12 +89,13 @@ def render_pose(
     ``grid`` renders a :class:`~gevsim.render.rays.PinholeGrid` instead of the film: images and
     noise come at its cell resolution, the error map and the request's samples per pixel
     are of its pixels (``grid.sub`` x ``grid.sub`` cells, each with 1 / sub^2 of the samples).
-    ``pixels`` (flat indices into ``grid``, whose sub must be 1) renders only those: images (K, 1, N, C).
+    ``pixels`` (flat indices into ``grid``'s cells) renders only those cells: images (K, 1, N, C), and the
+    error map (1, N) of the cells.
     """
     r = scene.manifest.render
     per = 1 if grid is None else grid.sub**2  # cells a pixel's samples are spread over
     acc = BatchAccumulator(request["mixtures"], floor_rel=request["floor_rel"], metric=request["metric"],
-                           cells=1 if grid is None else grid.sub)
+                           cells=1 if grid is None or pixels is not None else grid.sub)
     cells = r.width * r.height if grid is None else grid.width * grid.height if pixels is None else len(pixels)
     cap = max(1, MAX_BATCH_PATHS // cells)  # samples per cell
     target = request["target_ln"]

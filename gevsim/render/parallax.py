@@ -127,14 +127,15 @@ def window(scene, cameras: list[np.ndarray], ref: np.ndarray, *, margin_px: int 
             math.ceil(b[:, 2].max()) + margin_px, math.ceil(b[:, 3].max()) + margin_px)
 
 
-def reproject(scene, grid: PinholeGrid, camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(rect, ok)``: each pixel's footprint on ``grid`` (4, H, W; cells, as
-    :func:`gevsim.render.rotation.footprints`) and whether it may be reused (see the module notes)."""
+def reproject(scene, grid: PinholeGrid, camera: np.ndarray, *, sub: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """``(rect, ok)``: the footprint on ``grid`` of each of the ``sub`` x ``sub`` cells of each pixel of
+    the view through ``camera`` (4, H sub, W sub; in grid cells, as :func:`gevsim.render.rotation.footprints`)
+    and whether it may be reused (see the module notes; the tests are applied to each cell)."""
     m = scene.manifest
-    w, h = m.render.width, m.render.height
-    vc, uc = np.mgrid[0:h + 1, 0:w + 1].astype(float)
+    w, h = m.render.width * sub, m.render.height * sub
+    vc, uc = np.mgrid[0:h + 1, 0:w + 1].astype(float) / sub
     corners = cast(scene, camera, uc, vc)
-    centres = cast(scene, camera, uc[:-1, :-1] + 0.5, vc[:-1, :-1] + 0.5)
+    centres = cast(scene, camera, uc[:-1, :-1] + 0.5 / sub, vc[:-1, :-1] + 0.5 / sub)
     ref_centre = grid.camera[:3, 3]
 
     def cells(hits: Hits, shape: tuple[int, int]) -> np.ndarray:
@@ -160,7 +161,7 @@ def reproject(scene, grid: PinholeGrid, camera: np.ndarray) -> tuple[np.ndarray,
     for s, sh, n in zip(at_corners(seen), at_corners(corners.shape), at_corners(corners.normal)):
         ok &= s & (sh == shape_mid) & (np.einsum("...i,...i", n, normal_mid) >= cos_max)
     # The footprint is near its rectangle: corners within MAX_SHEAR_PX of its sides, centre near its centre.
-    tol = MAX_SHEAR_PX * grid.sub
+    tol = MAX_SHEAR_PX * grid.sub / sub
     with np.errstate(invalid="ignore"):
         off = np.maximum.reduce([np.abs(c[:-1, :-1, 0] - c[1:, :-1, 0]), np.abs(c[:-1, 1:, 0] - c[1:, 1:, 0]),
                                  np.abs(c[:-1, :-1, 1] - c[:-1, 1:, 1]), np.abs(c[1:, :-1, 1] - c[1:, 1:, 1]),

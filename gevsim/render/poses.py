@@ -201,8 +201,7 @@ def render_parallax(scene: MitsubaScene, times: np.ndarray, request: dict, cache
     """Poses of a camera moving through a static, view-independent scene: each pixel reprojected from
     its segment's reference render where that is exact, rendered anew where not
     (:mod:`gevsim.render.parallax`)."""
-    from gevsim.render import basis, parallax
-    from gevsim.render.rays import sensor_grid
+    from gevsim.render import parallax
 
     m, r = scene.manifest, scene.manifest.render
     cameras = [scene.pose_at(float(t)).camera for t in times]
@@ -227,24 +226,11 @@ def render_parallax(scene: MitsubaScene, times: np.ndarray, request: dict, cache
                     window = _window_render(scene, g, key, times[ref], request, cache,
                                             _budget(request, started, len(segments) - i), out, seg.poses[0])
                 tick = time.perf_counter()
-                mean, err, se_map, report = window
-                rect, ok = parallax.reproject(scene, g, pose.camera)
-                images, noise = rotation.box_resample(mean, rect), rotation.box_resample(err, rect)
-                se = rotation.pixel_error(se_map, g, rect)
-                todo = np.flatnonzero(~ok)
-                spp_min = report["spp"]
-                if todo.size:
-                    scene.set_pose(pose)
-                    grid = sensor_grid(pose.camera, fov_deg=m.fov_deg, width=r.width, height=r.height)
-                    sub_mean, sub_err, sub_se, sub_report = basis.render_pose(scene, request, grid=grid, pixels=todo)
-                    rows, cols = np.divmod(todo, r.width)
-                    images[:, rows, cols], noise[:, rows, cols] = sub_mean[:, 0], sub_err[:, 0]
-                    se[rows, cols] = sub_se[0]
-                    spp_min = min(spp_min, sub_report.spp)
+                images, noise, se, ok = _parallax_pose(scene, pose, g, window, request)
                 out.seconds[p] += time.perf_counter() - tick
-                quality = {**report, "spp": spp_min, "seconds": float(out.seconds[p]), "reuse": "parallax",
+                quality = {**window[3], "seconds": float(out.seconds[p]), "reuse": "parallax",
                            "reused_fraction": float(ok.mean()), "reference_t_s": float(times[ref]),
-                           "se_ln": {**report["se_ln"], **error_percentiles(se, request["percentile"])}}
+                           "se_ln": {**window[3]["se_ln"], **error_percentiles(se, request["percentile"])}}
                 out.quality.append(quality)
                 cache.write(pose_key, images, noise, se, _meta(scene, request, quality, times[p], reuse="parallax"))
             out.images.append(images)
@@ -257,6 +243,37 @@ def render_parallax(scene: MitsubaScene, times: np.ndarray, request: dict, cache
     log.info("parallax reuse: %d poses from %d reference render(s); %.1f %% of pixels reused (%.1f-%.1f %% a pose)",
              len(times), len(segments), 100 * np.mean(fractions), 100 * min(fractions), 100 * max(fractions))
     return out
+
+
+def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -> tuple:
+    """(images, noise, pixel error map, reused cells) of one pose: each of its pixels' ``g.sub`` x ``g.sub``
+    cells reprojected from the window, or rendered anew at the window's density of samples (the window's
+    samples per pixel spread over its cells) when it cannot be; a pixel is the mean of its cells."""
+    from gevsim.render import basis, parallax
+    from gevsim.render.rays import PinholeGrid, focal_px
+
+    m, r = scene.manifest, scene.manifest.render
+    s, (h, w) = g.sub, (r.height, r.width)
+    mean, err, se_map, report = window
+    rect, ok = parallax.reproject(scene, g, pose.camera, sub=s)
+    cells, cell_noise = rotation.box_resample(mean, rect), rotation.box_resample(err, rect)
+    var = rotation.box_resample(np.repeat(np.repeat(np.square(se_map.astype(np.float64)) * s * s, s, axis=0), s,
+                                          axis=1)[None, ..., None], rect, power=2)[0, ..., 0].astype(np.float64)
+    todo = np.flatnonzero(~ok)
+    if todo.size:
+        scene.set_pose(pose)
+        grid = PinholeGrid(pose.camera, focal_px(m.fov_deg, w), w / 2, h / 2, 0.0, 0.0, w * s, h * s, s)
+        fixed = {**request, "spp": int(report["spp"]), "target_ln": None}  # the window's density of samples
+        sub_mean, sub_err, sub_se, _ = basis.render_pose(scene, fixed, grid=grid, pixels=todo)
+        rows, cols = np.divmod(todo, w * s)
+        cells[:, rows, cols], cell_noise[:, rows, cols] = sub_mean[:, 0], sub_err[:, 0]
+        var[rows, cols] = np.square(sub_se[0].astype(np.float64))
+
+    def pixels(a: np.ndarray) -> np.ndarray:
+        return a.reshape(a.shape[0], h, s, w, s, a.shape[-1]).mean(axis=(2, 4))
+
+    se = np.sqrt(var.reshape(h, s, w, s).sum(axis=(1, 3)) / s**4).astype(np.float32)
+    return pixels(cells).astype(np.float32), pixels(cell_noise).astype(np.float32), se, ok
 
 
 def _window_render(scene, g, key, t_ref, request, cache, budget, out, first) -> tuple:
