@@ -4,6 +4,8 @@ and, at the same frame times, depth, forward optical flow and the camera's pose 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 from scipy.constants import elementary_charge
 
@@ -11,8 +13,16 @@ from gevsim import _portable as pm
 from gevsim.emulation import layout
 from gevsim.illumination import weights_at
 
+if TYPE_CHECKING:
+    from gevsim.emulation.config import EmulationConfig
+    from gevsim.emulation.driver import Setup
+    from gevsim.io import EventWriter
+    from gevsim.pixel import ApsSensor
+    from gevsim.render.scene import MitsubaScene
 
-def write_frames(wr, setup, frame_t, dark, aps, aps_rng, config) -> None:
+
+def write_frames(wr: EventWriter, setup: Setup, frame_t: np.ndarray, dark: Any, aps: ApsSensor | None,
+                 aps_rng: np.random.Generator | None, config: EmulationConfig) -> None:
     """Ground truth: noise-free log photocurrent (with and without flicker), APS frames, and the
     scene's geometry at each frame time (when the setup holds its scene)."""
     from gevsim.emulation.driver import photocurrent_at
@@ -27,7 +37,7 @@ def write_frames(wr, setup, frame_t, dark, aps, aps_rng, config) -> None:
         wr.append_frame(layout.LOG_PHOTOCURRENT_NO_FLICKER,
                         pm.log(photocurrent_at(setup, np.array([t]), wm)[0] + dark).astype(np.float32), t_us,
                         **layout.FRAME_ATTRS[layout.LOG_PHOTOCURRENT_NO_FLICKER])
-        if aps is not None and t >= config.aps_exposure_s:
+        if aps is not None and aps_rng is not None and t >= config.aps_exposure_s:
             start = t - config.aps_exposure_s
             wa = weights_at(setup.waveforms, np.array([start]), average_over_s=config.aps_exposure_s)
             current = photocurrent_at(setup, np.array([start + 0.5 * config.aps_exposure_s]), wa)[0]
@@ -44,7 +54,7 @@ def write_frames(wr, setup, frame_t, dark, aps, aps_rng, config) -> None:
         write_geometry(wr, setup.scene, frame_t, 1.0 / config.frame_rate_hz)
 
 
-def write_geometry(wr, scene, frame_t, dt_s: float) -> None:
+def write_geometry(wr: EventWriter, scene: MitsubaScene, frame_t: np.ndarray, dt_s: float) -> None:
     """Depth and forward flow (to ``t + dt_s``, the next frame) as frame streams, and the camera's
     pose and velocities at each frame time under ``/poses``."""
     from gevsim.render.groundtruth import frame_truth

@@ -107,7 +107,7 @@ class RenderCache:
                         exc.strerror or exc)
             self.writable = False
 
-    def read(self, key: str, groups: tuple[str, ...], shape: tuple[int, int], request: dict):
+    def read(self, key: str, groups: tuple[str, ...], shape: tuple[int, int], request: dict) -> tuple | None:
         """(mean, noise, se_map, meta) of the cached render ``key`` when it exists, is sound and serves
         ``request``; else None. ``shape`` is the images' (H, W)."""
         path = self.path / f"{key}.exr"

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gevsim.render.rays import PinholeGrid, focal_px, image_points, primary_rays, sensor_grid
+from gevsim.render.scene import MitsubaScene
 
 #: Largest angle (deg) between the normals at a pixel's corners and centre for it to be one flat surface.
 MAX_NORMAL_DEG = 2.0
@@ -52,7 +53,7 @@ class Hits:
     normal: np.ndarray
 
 
-def view_independent(scene) -> str | None:
+def view_independent(scene: MitsubaScene) -> str | None:
     """Why the radiance leaving the scene's surfaces depends on the view (None when it does not)."""
     import mitsuba as mi
 
@@ -67,7 +68,7 @@ def view_independent(scene) -> str | None:
     return None
 
 
-def cast(scene, camera: np.ndarray, u: np.ndarray, v: np.ndarray) -> Hits:
+def cast(scene: MitsubaScene, camera: np.ndarray, u: np.ndarray, v: np.ndarray) -> Hits:
     """What the rays of ``camera`` (the scene's lens and film) through image points (u, v) hit."""
     import drjit as dr
     import mitsuba as mi
@@ -89,7 +90,7 @@ def cast(scene, camera: np.ndarray, u: np.ndarray, v: np.ndarray) -> Hits:
     return Hits(camera[:3, 3] + d * distance[:, None], valid, np.array(owner, dtype=np.int64).reshape(-1), normal)
 
 
-def visible_from(scene, points: np.ndarray, centre: np.ndarray) -> np.ndarray:
+def visible_from(scene: MitsubaScene, points: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """Whether each world point is seen from ``centre`` (no surface strictly between them)."""
     import mitsuba as mi
 
@@ -103,7 +104,7 @@ def visible_from(scene, points: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return ~np.array(scene.scene.ray_test(ray), dtype=bool).reshape(-1)
 
 
-def window(scene, cameras: list[np.ndarray], ref: np.ndarray, *, margin_px: int = 2,
+def window(scene: MitsubaScene, cameras: list[np.ndarray], ref: np.ndarray, *, margin_px: int = 2,
            border_step: int = 4) -> tuple[float, float, float, float] | None:
     """(u_min, v_min, u_max, v_max) on ``ref``'s image plane covering what the cameras' image borders see
     (sampled every ``border_step`` px), or None where a seen point is behind the reference camera."""
@@ -127,7 +128,8 @@ def window(scene, cameras: list[np.ndarray], ref: np.ndarray, *, margin_px: int 
             math.ceil(b[:, 2].max()) + margin_px, math.ceil(b[:, 3].max()) + margin_px)
 
 
-def reproject(scene, grid: PinholeGrid, camera: np.ndarray, *, sub: int = 1) -> tuple[np.ndarray, np.ndarray]:
+def reproject(scene: MitsubaScene, grid: PinholeGrid, camera: np.ndarray, *,
+              sub: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """``(rect, ok)``: the footprint on ``grid`` of each of the ``sub`` x ``sub`` cells of each pixel of
     the view through ``camera`` (4, H sub, W sub; in grid cells, as :func:`gevsim.render.rotation.footprints`)
     and whether it may be reused (see the module notes; the tests are applied to each cell)."""
@@ -185,7 +187,7 @@ class Segment:
     poses: tuple[int, ...]
 
 
-def plan(scene, cameras: list[np.ndarray], *, sub: int) -> list[Segment]:
+def plan(scene: MitsubaScene, cameras: list[np.ndarray], *, sub: int) -> list[Segment]:
     """Split poses into segments that one reference window covers (at most :data:`MAX_WINDOW_AREA`
     images, :data:`MAX_SEGMENT_POSES` poses), each referenced to its middle pose."""
     m = scene.manifest

@@ -20,6 +20,7 @@ from gevsim.render import backend, integrator
 from gevsim.render.inputs import build_shapes, files_digest
 from gevsim.render.inputs import load_builder as load_builder  # re-exported (it lived here)
 from gevsim.render.manifest import Emission, LightGroup, SceneManifest
+from gevsim.render.rays import PinholeGrid
 from gevsim.render.trajectory import Pose, pose_at, pose_times
 from gevsim.render.xml_scene import is_xml, object_emits, xml_inputs
 
@@ -328,8 +329,8 @@ class MitsubaScene:
         sampler.set_sample_count(int(spp))
         return int(sampler.sample_count())
 
-    def render_groups(self, *, spp: int, seed: int, one_pass: bool | None = None, grid=None,
-                      pixels=None) -> np.ndarray:
+    def render_groups(self, *, spp: int, seed: int, one_pass: bool | None = None, grid: PinholeGrid | None = None,
+                      pixels: np.ndarray | None = None) -> np.ndarray:
         """(K, H, W, C) radiance of every light group at the current pose, from ``spp`` samples.
 
         In JIT variants one set of paths serves all groups
