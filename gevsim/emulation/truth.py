@@ -60,8 +60,9 @@ def write_geometry(wr: EventWriter, scene: MitsubaScene, frame_t: np.ndarray, dt
     from gevsim.render.groundtruth import frame_truth
 
     cameras, linear, angular, t_us = [], [], [], []
+    still = None if scene.manifest.moving else frame_truth(scene, 0.0, dt_s)  # nothing moves: one cast serves
     for t in frame_t:
-        truth = frame_truth(scene, float(t), dt_s)
+        truth = still if still is not None else frame_truth(scene, float(t), dt_s)
         us = int(round(t * 1e6))
         wr.append_frame(layout.DEPTH, truth.depth_m, us, **layout.FRAME_ATTRS[layout.DEPTH])
         wr.append_frame(layout.FLOW, truth.flow_px, us, **layout.FRAME_ATTRS[layout.FLOW])
