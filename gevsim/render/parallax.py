@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gevsim.render.rays import PinholeGrid, focal_px, image_points, primary_rays, sensor_grid
+from gevsim.render.rotation import Segment, edge_rect
 from gevsim.render.scene import MitsubaScene
 
 #: Largest angle (deg) between the normals at a pixel's corners and centre for it to be one flat surface.
@@ -145,11 +146,8 @@ def reproject(scene: MitsubaScene, grid: PinholeGrid, camera: np.ndarray, *,
         return ((uv - [grid.u0, grid.v0]) * grid.sub).reshape(*shape, 2)
 
     c, mid = cells(corners, (h + 1, w + 1)), cells(centres, (h, w))
-    x0 = 0.5 * (c[:-1, :-1, 0] + c[1:, :-1, 0])
-    x1 = 0.5 * (c[:-1, 1:, 0] + c[1:, 1:, 0])
-    y0 = 0.5 * (c[:-1, :-1, 1] + c[:-1, 1:, 1])
-    y1 = 0.5 * (c[1:, :-1, 1] + c[1:, 1:, 1])
-    rect = np.stack([x0, y0, x1, y1])
+    rect = edge_rect(c)
+    x0, y0, x1, y1 = rect
 
     def at_corners(a: np.ndarray) -> list[np.ndarray]:
         a = a.reshape(h + 1, w + 1, *a.shape[1:])
@@ -177,14 +175,6 @@ def reproject(scene: MitsubaScene, grid: PinholeGrid, camera: np.ndarray, *,
 #: A segment's window may cover at most this many images' area, and hold at most this many poses.
 MAX_WINDOW_AREA = 2.0
 MAX_SEGMENT_POSES = 64
-
-
-@dataclass(frozen=True)
-class Segment:
-    """Poses ``poses`` (indices) reuse the render of ``grid`` (seen from its camera, the reference)."""
-
-    grid: PinholeGrid
-    poses: tuple[int, ...]
 
 
 def plan(scene: MitsubaScene, cameras: list[np.ndarray], *, sub: int) -> list[Segment]:

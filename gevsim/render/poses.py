@@ -126,7 +126,6 @@ def render_rotation(scene: MitsubaScene, times: np.ndarray, request: dict, cache
                     progress: Progress) -> PoseImages:
     """Poses of a camera turning about a fixed centre, resampled from one render per segment
     (:func:`gevsim.render.rotation.plan`): its seconds are booked on the segment's first pose."""
-    from gevsim.render import basis
 
     m, r = scene.manifest, scene.manifest.render
     cameras = [scene.pose_at(float(t)).camera for t in times]
@@ -138,21 +137,8 @@ def render_rotation(scene: MitsubaScene, times: np.ndarray, request: dict, cache
         g = seg.grid
         key = _grid_key(scene, g)
         ref = seg.poses[(len(seg.poses) - 1) // 2]
-        # EXR layers share one size: the pixels' error map is stored at cell resolution, each value repeated.
-        cached = cache.read(key, m.group_names, (g.height, g.width), request)
-        if cached is not None:
-            mean, err, se_cells, meta = cached
-            se_map, report = se_cells[::g.sub, ::g.sub], meta["report"]
-        else:
-            scene.set_pose(scene.pose_at(float(times[ref])))
-            mean, err, se_map, noise_report = basis.render_pose(
-                scene, request, budget_s=_budget(request, started, len(segments) - i), grid=g)
-            check_rendered(mean, source=m.source, t_s=float(times[ref]))
-            report = noise_report.as_dict()
-            out.seconds[seg.poses[0]] = noise_report.seconds
-            se_cells = np.repeat(np.repeat(se_map, g.sub, axis=0), g.sub, axis=1)
-            cache.write(key, mean, err, se_cells, _meta(scene, request, report, times[ref], reuse="rotation",
-                                                        grid=g.key()))
+        mean, err, se_map, report = _window_render(scene, g, key, times[ref], request, cache,
+                                                   _budget(request, started, len(segments) - i), out, seg.poses[0])
         for p in seg.poses:
             rect = rotation.footprints(g, cameras[p], width=r.width, height=r.height)
             out.images.append(rotation.box_resample(mean, rect))
@@ -277,7 +263,8 @@ def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -
 
 
 def _window_render(scene, g, key, t_ref, request, cache, budget, out, first) -> tuple:
-    """The reference window's (mean, noise, pixel error map, report dict), from the cache or rendered."""
+    """The reference window's (mean, noise, pixel error map, report dict), from the cache or rendered.
+    EXR layers share one size: the pixels' error map is stored at cell resolution, each value repeated."""
     from gevsim.render import basis
 
     m = scene.manifest

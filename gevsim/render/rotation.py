@@ -115,11 +115,8 @@ def footprints(grid: PinholeGrid, camera: np.ndarray, *, width: int, height: int
     through the midpoints of its mapped edges. Raises ValueError where a mapped footprint is not
     close to that rectangle (``MAX_SHEAR_PX``) or leaves the grid."""
     c = map_view(grid, camera, width=width, height=height)
-    x0 = 0.5 * (c[:-1, :-1, 0] + c[1:, :-1, 0])
-    x1 = 0.5 * (c[:-1, 1:, 0] + c[1:, 1:, 0])
-    y0 = 0.5 * (c[:-1, :-1, 1] + c[:-1, 1:, 1])
-    y1 = 0.5 * (c[1:, :-1, 1] + c[1:, 1:, 1])
-    rect = np.stack([x0, y0, x1, y1])
+    rect = edge_rect(c)
+    x0, y0, x1, y1 = rect
     shear = max(np.abs(c[:-1, :-1, 0] - c[1:, :-1, 0]).max(), np.abs(c[:-1, :-1, 1] - c[:-1, 1:, 1]).max())
     if not np.isfinite(rect).all() or shear > 2 * MAX_SHEAR_PX * grid.sub:
         raise ValueError(f"rotation reuse: pixel footprints are not rectangles on the reference (corners off by "
@@ -128,6 +125,13 @@ def footprints(grid: PinholeGrid, camera: np.ndarray, *, width: int, height: int
             or (y1 <= y0).any():
         raise ValueError("rotation reuse: a pixel footprint leaves the reference window")
     return rect
+
+
+def edge_rect(c: np.ndarray) -> np.ndarray:
+    """(4, H, W): x0, y0, x1, y1 of the axis-aligned rectangle through the midpoints of the edges of each
+    quadrilateral of the (H + 1, W + 1, 2) corner map ``c``."""
+    return np.stack([0.5 * (c[:-1, :-1, 0] + c[1:, :-1, 0]), 0.5 * (c[:-1, :-1, 1] + c[:-1, 1:, 1]),
+                     0.5 * (c[:-1, 1:, 0] + c[1:, 1:, 0]), 0.5 * (c[1:, :-1, 1] + c[1:, 1:, 1])])
 
 
 def _overlaps(lo: np.ndarray, hi: np.ndarray, size: int) -> list[tuple[np.ndarray, np.ndarray]]:
