@@ -12,7 +12,9 @@ The builder's files are found by running it (:func:`build_shapes`) and recording
 - every file Python opens for reading while the builder is imported and
   ``build(options)`` runs (``open``, ``numpy.load``, Pillow, imageio, helper
   modules it imports: Python's ``open`` audit event), except files of the Python
-  installation (standard library, site-packages) and gevsim's own modules;
+  installation (standard library, site-packages), of any other folder on ``sys.path``
+  (``PYTHONPATH``, ``.pth`` files: libraries, unless the folder holds the builder) and
+  gevsim's own modules;
 - every module the builder's import statements name, and theirs in turn, as
   imported (``sys.modules``): found in every build, not only the first one in a
   process that imports them; what an earlier build in the process found stays
@@ -125,9 +127,21 @@ def _gevsim_root() -> str:
     return os.path.join(os.path.realpath(Path(gevsim.__file__).parent), "")
 
 
-def _is_input(path: str) -> bool:
-    """Whether a file Python opened while building counts as a scene input."""
+def _library_roots(scene_dir: Path) -> tuple[str, ...]:
+    """The folders on ``sys.path`` other than the scene's own or one above it: where libraries imported from
+    ``PYTHONPATH`` or ``.pth`` files live. A library a builder imports opens its files on first import only,
+    so counting them made a scene's digest change between a process's first and second build."""
+    scene = os.path.join(os.path.realpath(scene_dir), "")
+    roots = (os.path.join(os.path.realpath(entry), "") for entry in sys.path if entry and os.path.isdir(entry))
+    return tuple(sorted({r for r in roots if not scene.startswith(r)}))
+
+
+def _is_input(path: str, libraries: tuple[str, ...] = ()) -> bool:
+    """Whether a file Python opened while building counts as a scene input (``libraries``: more folders
+    that hold none, :func:`_library_roots`)."""
     if path.startswith(_SYSTEM) or path.startswith(_installed_roots()) or "__pycache__" in path:
+        return False
+    if libraries and path.startswith(libraries):
         return False
     if path.startswith(_gevsim_root()) and path.endswith((".py", ".pyc")):
         return False  # gevsim's own code: its version is in the keys that need it
@@ -197,10 +211,11 @@ def _imported_names(path: Path, package: str | None) -> set[str]:
     return {".".join(n.split(".")[:i]) for n in names if n for i in range(1, n.count(".") + 2)}
 
 
-def _module_file(module: Any) -> Path | None:
-    """A module's source file where it counts as a scene input (not the installation's, not gevsim's)."""
+def _module_file(module: Any, libraries: tuple[str, ...] = ()) -> Path | None:
+    """A module's source file where it counts as a scene input (not the installation's or a library's,
+    not gevsim's)."""
     file = getattr(module, "__file__", None)
-    if isinstance(file, str) and file.endswith(".py") and _is_input(os.path.realpath(file)):
+    if isinstance(file, str) and file.endswith(".py") and _is_input(os.path.realpath(file), libraries):
         return Path(file).resolve()
     return None
 
@@ -210,13 +225,14 @@ def _helper_modules(builder: Path, module: Any) -> set[Path]:
     names looked up in ``sys.modules``. Unlike the modules a build adds to ``sys.modules``, this is
     the same in a process's second build (``from helper import X`` binds no module; issue 24 #7)."""
     found: set[Path] = set()
+    libraries = _library_roots(builder.parent)
     todo, seen = [(builder, getattr(module, "__package__", None))], set[str]()
     while todo:
         path, package = todo.pop()
         for name in sorted(_imported_names(path, package) - seen):
             seen.add(name)
             mod = sys.modules.get(name)
-            file = _module_file(mod)
+            file = _module_file(mod, libraries)
             if file is not None and file not in found:
                 found.add(file)
                 todo.append((file, getattr(mod, "__package__", None)))
@@ -272,10 +288,11 @@ def build_shapes(manifest: SceneManifest) -> tuple[dict, tuple[Path, ...]]:
         shapes = call_build(module.build, manifest, builder)
     if not isinstance(shapes, dict):
         raise ConfigError("build(options) must return a dict of Mitsuba objects", source=str(builder))
-    found = {Path(p).resolve() for p in map(os.fsdecode, opened) if _is_input(os.path.realpath(p))}
+    libraries = _library_roots(builder.parent)
+    found = {Path(p).resolve() for p in map(os.fsdecode, opened) if _is_input(os.path.realpath(p), libraries)}
     modules = [sys.modules[m] for m in set(sys.modules) - before if m in sys.modules]
     modules += [v for v in vars(module).values() if type(v) is type(sys)]
-    found.update(f for f in map(_module_file, modules) if f is not None)
+    found.update(f for f in (_module_file(m, libraries) for m in modules) if f is not None)
     found |= _helper_modules(builder, module)
     found |= _named_files(_strings(shapes), (builder.parent, Path.cwd()))
     found |= _named_files(_source_constants(builder), (builder.parent,))

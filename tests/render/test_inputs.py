@@ -94,3 +94,28 @@ def test_an_edited_texture_is_rendered_again(tmp_path, variant):
         again = render()
         assert (again.render_s > 0).all(), f"{edit}: served from the cache"
         assert not np.array_equal(again.images, first.images)
+
+
+def test_a_library_on_pythonpath_is_not_a_scene_input(tmp_path, variant, monkeypatch):
+    """Issue 26: with packages outside the interpreter's prefix (PYTHONPATH, .pth files) a builder's library
+    opened its files on first import only, so the scene digest (and a study's run ids) changed between a
+    process's first and second build. A folder on sys.path other than the scene's holds libraries."""
+    textured_scene(tmp_path / "scene")
+    lib = tmp_path / "lib"
+    lib.mkdir()
+    name = f"fancylib_{tmp_path.name}"
+    (lib / "table.txt").write_text("2.0")
+    (lib / f"{name}.py").write_text("from pathlib import Path\n\n"
+                                    "SIZE = float((Path(__file__).parent / 'table.txt').read_text())\n")
+    scene = tmp_path / "scene"
+    (scene / "b.py").write_text(
+        f"from {name} import SIZE\n\nfrom gevsim.render import shapes as s\n\n\ndef build(options):\n"
+        "    return {'lamp': s.rectangle([0, 0, 4.5], [SIZE, SIZE], facing='-z', emitter=s.area_light())}\n")
+    manifest = scene / "b.toml"
+    manifest.write_text((scene / "textured.toml").read_text().replace('"textured.py"', '"b.py"'))
+    monkeypatch.syspath_prepend(str(lib))
+    monkeypatch.delitem(sys.modules, name, raising=False)
+    first = scene_digest(manifest)  # the first build imports the library (it opens table.txt)
+    _, files = build_shapes(load(manifest))
+    assert names(files) == ["b.py"]
+    assert scene_digest(manifest) == first
