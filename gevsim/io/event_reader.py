@@ -53,9 +53,7 @@ class EventReader:
         if not self.path.is_file():
             raise ConfigError("no such file", source=src)
         try:
-            # No HDF5 file lock: complete files are never written again, and a writer's check of
-            # its own finished stage (EventWriter.close(before_commit=...)) reads it while the stage is locked.
-            self._file = h5py.File(self.path, "r", locking=False)
+            self._file = _open_shared(self.path)
         except OSError as exc:
             raise ConfigError(f"not an HDF5 file ({exc})", source=src) from None
         attrs = self._file.attrs
@@ -232,3 +230,17 @@ class EventReader:
 
     def array_attrs(self, path: str) -> dict:
         return dict(self._file[path].attrs)
+
+
+def _open_shared(path: Path) -> h5py.File:
+    """Open for reading with HDF5's file locking as h5py does by default, so that a user's plain
+    ``h5py.File(path)`` and a reader can be open at once (HDF5 refuses a second open in one process with
+    other locking flags); where the lock cannot be had (a writer's check of its own finished stage,
+    ``EventWriter.close(before_commit=...)``, reads it while gevsim's stage lock holds it; a handle opened
+    with ``locking=False``), without it: complete files are never written again."""
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        if "lock" not in str(exc).lower():
+            raise
+        return h5py.File(path, "r", locking=False)

@@ -264,3 +264,18 @@ def test_unknown_stream_suggests_a_name(tmp_path):
         w.append("events", make_events([1]))
     with EventReader(path) as r, pytest.raises(ConfigError, match="did you mean 'events'"):
         r.read("event")
+
+
+def test_a_plain_h5py_handle_and_a_reader_are_open_at_once(good):
+    """Issue 26: EventReader opened without HDF5 file locking, so h5py.File(path) (locking by default) in the
+    same process failed with "file locking flag values don't match", whichever was opened first."""
+    import h5py
+
+    from gevsim.io import EventReader
+
+    with h5py.File(good, "r") as f, EventReader(good) as r:
+        assert len(r.read("events")) == f["events/t"].shape[0]
+    with EventReader(good) as r, h5py.File(good, "r") as f:
+        assert r.width == f.attrs["width"]
+    with h5py.File(good, "r", locking=False) as f, EventReader(good) as r:  # and a handle without locking
+        assert r.height == f.attrs["height"]
