@@ -4,11 +4,16 @@ iniVation's maintained ``dv-processing`` library (extra ``aedat4``).
 AEDAT4 event streams carry polarity events (timestamp in microseconds, x, y, a boolean
 polarity). gevsim's streams map onto them as:
 
-- the brightness stream ``events`` (DVS, center-surround): one AEDAT4 event stream of the
-  same name, polarity = ON;
-- a gradient stream ``<name>`` (ternary gradient codes, one event per change of a pixel's
-  x or y code by one step): two AEDAT4 event streams, ``<name>_x`` and ``<name>_y``, with
-  polarity = the step is upward (``p = +1``).
+- the brightness stream ``events`` (DVS): the AEDAT4 event stream ``events``, polarity = ON;
+- every other stream ``<kind>_events`` is named ``events_<kind>`` (center-surround:
+  ``events_csdvs``), and a gradient stream (ternary gradient codes, one event per change of
+  a pixel's x or y code by one step) becomes two, ``events_<kind>_x`` and ``events_<kind>_y``,
+  with polarity = the step is upward (``p = +1``).
+
+dv-processing numbers a file's streams in alphabetical order of their names, whatever order
+they are added in, and readers that take "the" event stream take the first (tonic's
+``read_aedat4``, ``getNextEventBatch()`` without a name): so the DVS stream's name sorts first
+(issue 26: ``csdvs_events`` used to, and was read as the DVS).
 
 Timestamps stay in microseconds from the start of the emulation. The output file is written
 next to its final name and renamed into place when complete.
@@ -30,7 +35,7 @@ from gevsim.io.hdf5 import EventReader
 from gevsim.io.ownership import check_file, sweep_beside
 from gevsim.resources import AEDAT4_EVENT_BYTES, check_export  # dv-processing aborts on a full disk
 
-__all__ = ["aedat4_streams", "export_aedat4", "read_aedat4"]
+__all__ = ["aedat4_name", "aedat4_streams", "export_aedat4", "read_aedat4"]
 
 WINDOW_US = 50_000  # events are read and written 50 ms at a time
 MAGIC = b"#!AER-DAT4.0"  # how every AEDAT4 file starts
@@ -45,16 +50,25 @@ def _dv():
     return dv
 
 
+def aedat4_name(stream: str) -> str:
+    """The AEDAT4 name of a gevsim stream: ``events`` stays, ``<kind>_events`` becomes ``events_<kind>``
+    (so the DVS stream sorts first; see the module notes)."""
+    if stream == "events":
+        return stream
+    return "events_" + (stream[:-len("_events")] if stream.endswith("_events") else stream)
+
+
 def aedat4_streams(reader: EventReader) -> dict[str, tuple[str, int | None]]:
     """AEDAT4 stream name -> (gevsim stream, gradient axis or None) for the streams of a file."""
     out: dict[str, tuple[str, int | None]] = {}
     for stream in reader.streams:
+        name = aedat4_name(stream)
         if "axis" in (reader.dtype(stream).names or ()):
-            out[f"{stream}_x"] = (stream, 0)
-            out[f"{stream}_y"] = (stream, 1)
+            out[f"{name}_x"] = (stream, 0)
+            out[f"{name}_y"] = (stream, 1)
         else:
-            out[stream] = (stream, None)
-    return out
+            out[name] = (stream, None)
+    return dict(sorted(out.items()))
 
 
 def _store(dv, events: np.ndarray):

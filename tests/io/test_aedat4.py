@@ -46,13 +46,13 @@ def same(aedat, ev):
 def test_round_trip_of_brightness_and_both_gradient_axes(emulation, tmp_path):
     path, dvs, grad = emulation
     counts = export_aedat4(path, tmp_path / "run.aedat4")
-    assert counts == {"events": 5000, "gradient_events_x": int((grad["axis"] == 0).sum()),
-                      "gradient_events_y": int((grad["axis"] == 1).sum())}
+    assert counts == {"events": 5000, "events_gradient_x": int((grad["axis"] == 0).sum()),
+                      "events_gradient_y": int((grad["axis"] == 1).sum())}
     back = read_aedat4(tmp_path / "run.aedat4")
     assert set(back) == set(counts)
     same(back["events"], dvs)
-    same(back["gradient_events_x"], grad[grad["axis"] == 0])
-    same(back["gradient_events_y"], grad[grad["axis"] == 1])
+    same(back["events_gradient_x"], grad[grad["axis"] == 0])
+    same(back["events_gradient_y"], grad[grad["axis"] == 1])
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary file left
 
 
@@ -67,3 +67,23 @@ def test_cli_exports_one_stream_and_refuses_unknown_ones(emulation, tmp_path, ca
     assert "no stream 'evnts'" in capsys.readouterr().err
     with pytest.raises(ConfigError, match="no stream"):
         export_aedat4(path, out, streams=["nope"])
+
+
+def test_a_reader_taking_the_first_event_stream_gets_the_dvs(tmp_path):
+    """Issue 26: with a center-surround stream beside it, readers that take the first event stream
+    (dv-processing's getNextEventBatch() without a name, tonic's read_aedat4) got the CSDVS events."""
+    import dv_processing as dv
+
+    path = tmp_path / "run.h5"
+    dvs, cs = events(3000, BRIGHTNESS_DTYPE, 3), events(1000, BRIGHTNESS_DTYPE, 4)
+    with EventWriter(path, width=W, height=H, config_toml="", seed=0) as w:
+        w.append("events", dvs)
+        w.append("csdvs_events", cs)
+        w.close(t_end_us=120_000)
+    export_aedat4(path, tmp_path / "run.aedat4")
+    recording = dv.io.MonoCameraRecording(str(tmp_path / "run.aedat4"))
+    parts = []
+    while (batch := recording.getNextEventBatch()) is not None:  # no name: the camera's (first) event stream
+        parts.append(batch.numpy())
+    same(np.concatenate(parts), dvs)
+    assert read_aedat4(tmp_path / "run.aedat4")["events_csdvs"].shape == (1000,)
