@@ -49,9 +49,9 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from gevsim.io.aedat4 import export_aedat4
+    from gevsim.io.exports import export
 
     streams = [s for part in args.stream or [] for s in part.split(",") if s] or None
-    counts = export_aedat4(args.file, args.out, streams=streams)
+    counts = export(args.file, args.out, args.format, streams=streams)
     print(f"gevsim: wrote {args.out}: " + ", ".join(f"{k} {v}" for k, v in counts.items()), file=sys.stderr)
     return 0

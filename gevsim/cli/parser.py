@@ -100,12 +100,15 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--bits-per-event", type=_non_negative, default=32.0, help="for the bandwidth column (default 32)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
-    x = sub.add_parser("export", help="write an emulation file's events in another format (AEDAT4 for DV tools)")
+    x = sub.add_parser("export", help="write an emulation file's events in the formats other tools read")
     x.add_argument("file", help="an emulation file (.h5)")
-    x.add_argument("--format", choices=("aedat4",), required=True,
-                   help="aedat4: iniVation DV (gradient axes as <stream>_x/_y event streams)")
-    x.add_argument("--out", required=True, help="output file (written atomically; replaces only an earlier gevsim "
-                   "export, never the input)")
+    x.add_argument("--format", choices=("aedat4", "text", "npz", "evreal"), required=True,
+                   help="aedat4: iniVation DV (the DVS stream 'events' first; others events_<kind>, gradient axes "
+                        "as events_<kind>_x/_y); text: one stream as 't x y p' lines, t in seconds (ESIM, E2VID, "
+                        "EVREAL tooling); npz: NumPy structured arrays with tonic's fields, one per stream; "
+                        "evreal: an EVREAL sequence folder (DVS events and tone-mapped ground-truth frames)")
+    x.add_argument("--out", required=True, help="output file (a folder for evreal; written atomically; replaces "
+                   "only an earlier gevsim export of that format, never the input)")
     x.add_argument("--stream", action="append", metavar="NAME", help="streams to export (default: all)")
 
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")

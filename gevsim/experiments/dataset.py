@@ -52,9 +52,8 @@ from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.experiments.executors import run_all
 from gevsim.illumination.base import MAX_FREQUENCY_HZ
-from gevsim.io import EventReader, atomic_write_text, exclusive, export_evreal, sweep_stale
-from gevsim.io.evreal import MIN_EVENTS
-from gevsim.reconstruct.tonemap import ToneMap
+from gevsim.io import EventReader, atomic_write_text, exclusive, sweep_stale
+from gevsim.io.evreal import MIN_EVENTS, export_evreal_from
 from gevsim.render.quality import check_render_overrides
 from gevsim.resources import MAX_SEQUENCES
 from gevsim.timebase import TimeGrid
@@ -267,11 +266,7 @@ def _export_evreal(shard: Path, folder: Path, params: dict) -> str | None:
             reason = f"{r.count('events')} DVS events: EVREAL cannot load a sequence with fewer than {MIN_EVENTS}"
             log.warning("sequence %d: %s; %s not written", params["index"], reason, folder)
             return reason
-        events, (frames, t_us), w, h = r.read("events"), r.frames("log_photocurrent"), r.width, r.height
-    tone = ToneMap.from_ground_truth(frames)
-    images = np.rint(tone(frames) * 255.0).astype(np.uint8)
-    export_evreal(folder, events, images, t_us, width=w, height=h,
-                  extra_metadata={"tone_map_ln": [tone.low, tone.high], "parameters": params})
+    export_evreal_from(shard, folder, extra_metadata={"parameters": params})
     return None
 
 

@@ -211,3 +211,24 @@ def import_evreal(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | N
         raise ConfigError(f"indices must be non-decreasing and within [0, {max(n - 1, 0)}]",
                           source=str(folder / "image_event_indices.npy"))
     return events, images, np.rint(np.asarray(images_ts, np.float64) * 1e6).astype(np.int64), width, height
+
+
+def export_evreal_from(path: str | os.PathLike, folder: str | os.PathLike, *, extra_metadata: dict | None = None
+                       ) -> dict:
+    """An emulation file's DVS stream and its ground truth (``/frames/log_photocurrent``, tone-mapped to
+    uint8 by :class:`~gevsim.reconstruct.tonemap.ToneMap` from the frames' own range) as an EVREAL sequence
+    folder; returns ``{"events": count}``. Refuses a file with fewer than :data:`MIN_EVENTS` DVS events
+    (EVREAL cannot load it)."""
+    from gevsim.io.event_reader import EventReader
+    from gevsim.reconstruct.tonemap import ToneMap
+
+    with EventReader(path) as r:
+        if r.count("events") < MIN_EVENTS:
+            raise ConfigError(f"{r.count('events')} DVS events: EVREAL cannot load a sequence with fewer than "
+                              f"{MIN_EVENTS}", source=str(path))
+        events, (frames, t_us), w, h = r.read("events"), r.frames("log_photocurrent"), r.width, r.height
+    tone = ToneMap.from_ground_truth(frames)
+    images = np.rint(tone(frames) * 255.0).astype(np.uint8)
+    export_evreal(folder, events, images, t_us, width=w, height=h,
+                  extra_metadata={"tone_map_ln": [tone.low, tone.high], **(extra_metadata or {})})
+    return {"events": len(events)}

@@ -157,7 +157,7 @@ def check_folder(folder: str | os.PathLike, kind: str, *, inputs: Iterable[str |
         raise ValueError(f"kind must be one of {', '.join(FOLDER_KINDS)}, got {kind!r}")
     folder = Path(folder)
     src = str(folder)
-    _check_inputs_outside(folder, inputs)
+    check_inputs_outside(folder, inputs)
     if not os.path.lexists(folder):
         return
     if not folder.is_dir():
@@ -187,7 +187,7 @@ def check_folder(folder: str | os.PathLike, kind: str, *, inputs: Iterable[str |
                               "choose another output folder", source=src)
 
 
-def _check_inputs_outside(out: Path, inputs: Iterable[str | os.PathLike | None]) -> None:
+def check_inputs_outside(out: Path, inputs: Iterable[str | os.PathLike | None]) -> None:
     """Refuse an output that is one of the run's inputs or, as a folder, holds one."""
     target = Path(os.path.realpath(out))
     for item in inputs:
@@ -204,7 +204,7 @@ def check_file(path: str | os.PathLike, kind: str, is_ours: Callable[[Path], boo
     """Raise ConfigError unless the file output ``path`` of ``kind`` may be written: it is no input of the run
     and, where it exists, a regular file that ``is_ours`` recognises as a gevsim file of that kind."""
     path = Path(path)
-    _check_inputs_outside(path, inputs)
+    check_inputs_outside(path, inputs)
     if not os.path.lexists(path):
         return
     if path.is_dir():

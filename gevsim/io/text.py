@@ -1,4 +1,4 @@
-"""Plain-text events: one ``t x y p`` line per event (t in integer microseconds).
+"""Plain-text events: one ``t x y p`` line per event (t in integer microseconds, or in seconds).
 
 Brightness events are written as ``t x y p`` with p = 1 (ON) or 0 (OFF);
 gradient events as ``t x y p axis`` with p = +1/-1 and axis 0 (X) or 1 (Y).
@@ -21,22 +21,29 @@ from gevsim.io.atomic import atomic_path
 _ROWS = 2**16  # lines formatted per write
 
 
-def export_text(path: str | os.PathLike, events: np.ndarray) -> Path:
-    """Write ``events`` (brightness or gradient) to a text file, atomically."""
+def export_text(path: str | os.PathLike, events: np.ndarray, *, seconds: bool = False) -> Path:
+    """Write ``events`` (brightness or gradient) to a text file, atomically; ``seconds``: t in seconds
+    with 6 decimals (exact: whole microseconds), the community format, instead of integer microseconds."""
     check_events(events)
     gradient = is_gradient(events)
     names = ("t", "x", "y", "p", "axis") if gradient else ("t", "x", "y", "p")
     polarity = "p: +1/-1" if gradient else "p: 1 = ON, 0 = OFF"
-    header = f"# {' '.join(names)}  (gevsim {__version__}; t in microseconds; {polarity}; axis: 0 = X, 1 = Y)\n"
+    unit = "seconds" if seconds else "microseconds"
+    header = f"# {' '.join(names)}  (gevsim {__version__}; t in {unit}; {polarity}; axis: 0 = X, 1 = Y)\n"
     if not gradient:
         header = header.replace("; axis: 0 = X, 1 = Y", "")
-    line = " ".join(["%d"] * len(names)) + "\n"
+    line = " ".join(["%.6f" if seconds else "%d"] + ["%d"] * (len(names) - 1)) + "\n"
     with atomic_path(path) as tmp, open(tmp, "w") as f:
         f.write(header)
         for start in range(0, len(events), _ROWS):
             chunk = events[start:start + _ROWS]
-            table = np.stack([chunk[name].astype(np.int64) for name in names], axis=1)
-            f.write((line * len(chunk)) % tuple(table.ravel().tolist()))
+            cols = [chunk[name].astype(np.int64) for name in names]
+            if seconds:  # an int64 microsecond count divided by 1e6: %.6f prints it back exactly
+                rows = zip((chunk["t"] / 1e6).tolist(), *(c.tolist() for c in cols[1:]))
+                f.write("".join(line % r for r in rows))
+            else:
+                table = np.stack(cols, axis=1)
+                f.write((line * len(chunk)) % tuple(table.ravel().tolist()))
     return Path(path)
 
 
@@ -51,7 +58,12 @@ def import_text(path: str | os.PathLike) -> np.ndarray:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            table = np.loadtxt(path, dtype=np.int64, comments="#", ndmin=2)
+            if "t in seconds" in first:  # microseconds printed with 6 decimals: back to whole microseconds
+                table = np.loadtxt(path, dtype=np.float64, comments="#", ndmin=2)
+                table[:, 0] *= 1e6
+                table = np.rint(table).astype(np.int64)
+            else:
+                table = np.loadtxt(path, dtype=np.int64, comments="#", ndmin=2)
     except ValueError as exc:
         raise ConfigError(f"not a 't x y p [axis]' integer table ({exc})", source=src) from None
     if table.shape[0] == 0:  # no events: the header says which kind

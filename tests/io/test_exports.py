@@ -1,0 +1,91 @@
+"""`gevsim export` in every format, each read back with its client's own code and compared with the HDF5
+stream (counts, fields, times)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gevsim.cli import main
+from gevsim.io import EventReader
+
+
+def streams(path):
+    with EventReader(path) as r:
+        return {s: r.read(s) for s in r.streams}, r.width, r.height
+
+
+def test_text_is_t_x_y_p_with_t_in_seconds_read_by_numpy_loadtxt(good, tmp_path, capsys):
+    events, *_ = streams(good)
+    out = tmp_path / "events.txt"
+    assert main(["export", str(good), "--format", "text", "--out", str(out)]) == 0
+    table = np.loadtxt(out, comments="#", ndmin=2)  # what ESIM/E2VID-style tooling does
+    dvs = events["events"]
+    assert table.shape == (len(dvs), 4)
+    np.testing.assert_array_equal(np.rint(table[:, 0] * 1e6).astype(np.int64), dvs["t"])  # seconds, exact to 1 us
+    np.testing.assert_array_equal(table[:, 1:3].astype(int), np.c_[dvs["x"], dvs["y"]])
+    np.testing.assert_array_equal(table[:, 3].astype(int), (dvs["p"] > 0).astype(int))
+    # A gradient stream carries its axis; only one stream fits a text file.
+    assert main(["export", str(good), "--format", "text", "--stream", "gradient_events",
+                 "--out", str(tmp_path / "g.txt")]) == 0
+    g = np.loadtxt(tmp_path / "g.txt", comments="#", ndmin=2)
+    np.testing.assert_array_equal(g[:, 4].astype(int), events["gradient_events"]["axis"])
+    assert main(["export", str(good), "--format", "text", "--stream", "events,gradient_events",
+                 "--out", str(tmp_path / "two.txt")]) == 2
+    assert "one stream" in capsys.readouterr().err
+
+
+def test_npz_holds_every_stream_with_tonics_fields(good, tmp_path):
+    events, w, h = streams(good)
+    out = tmp_path / "events.npz"
+    assert main(["export", str(good), "--format", "npz", "--out", str(out)]) == 0
+    with np.load(out) as z:
+        assert (int(z["width"]), int(z["height"])) == (w, h)
+        for name, ev in events.items():
+            np.testing.assert_array_equal(z[name], ev)
+            assert {"x", "y", "t", "p"} <= set(z[name].dtype.names)
+    assert main(["export", str(good), "--format", "npz", "--out", str(out)]) == 0  # replaces its own export
+
+
+def test_evreal_folder_is_read_by_evreals_layout(good, tmp_path):
+    events, w, h = streams(good)
+    out = tmp_path / "seq"
+    assert main(["export", str(good), "--format", "evreal", "--out", str(out)]) == 0
+    # EVREAL's loader (tools/.../dataset.py) reads these N x 1 / N x 2 arrays and metadata.json.
+    ts, xy, p = (np.load(out / f"events_{n}.npy") for n in ("ts", "xy", "p"))
+    dvs = events["events"]
+    assert len(ts) == len(dvs)
+    np.testing.assert_allclose(ts.ravel(), dvs["t"] / 1e6)
+    np.testing.assert_array_equal(xy, np.c_[dvs["x"], dvs["y"]])
+    images = np.load(out / "images.npy")
+    assert images.dtype == np.uint8 and images.shape[1:3] == (h, w)
+
+
+def test_an_output_that_is_not_a_gevsim_export_is_refused(good, tmp_path, capsys):
+    mine = tmp_path / "notes.txt"
+    mine.write_text("my notes\n")
+    assert main(["export", str(good), "--format", "text", "--out", str(mine)]) == 2
+    assert mine.read_text() == "my notes\n"
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    (folder / "a.jpg").write_bytes(b"x")
+    assert main(["export", str(good), "--format", "evreal", "--out", str(folder)]) == 2
+    assert (folder / "a.jpg").exists()
+    assert "not a gevsim" in capsys.readouterr().err
+
+
+def test_the_text_export_round_trips_through_gevsims_reader(good, tmp_path):
+    from gevsim.io.text import export_text, import_text
+
+    events, *_ = streams(good)
+    for name, ev in events.items():
+        export_text(tmp_path / f"{name}.txt", ev, seconds=True)
+        back = import_text(tmp_path / f"{name}.txt")
+        for field in ("t", "x", "y"):
+            np.testing.assert_array_equal(back[field], ev[field])
+
+
+@pytest.mark.parametrize("fmt", ["text", "npz"])
+def test_an_unknown_stream_is_named(good, tmp_path, capsys, fmt):
+    assert main(["export", str(good), "--format", fmt, "--stream", "evnts", "--out", str(tmp_path / "x")]) == 2
+    assert "no stream 'evnts'" in capsys.readouterr().err
