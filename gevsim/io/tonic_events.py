@@ -52,7 +52,10 @@ def to_tonic(events: np.ndarray, *, axis: int | None = None) -> np.ndarray:
     ----------
     events : a gevsim event array (e.g. ``EventReader.read(stream)``), time-sorted.
     axis : gradient events only: None for the 4 channels (axis, sign), or 0 (X) / 1 (Y) for the
-        events of that axis with the 2 channels of their sign.
+        events of that axis with the 2 channels of their sign (1 = upward step, as a DVS ON event).
+        Polarity augmentations need one axis at a time: tonic's ``RandomFlipPolarity`` inverts ``p``
+        as a bool, which negates a brightness or one-axis stream exactly but sends every event of
+        the 4-channel layout's Y channels to channel 0 (tested).
 
     Returns
     -------

@@ -109,3 +109,22 @@ def test_to_tonic_layout_and_errors(streams):
         to_tonic(np.zeros(3, TONIC_DTYPE))
     with pytest.raises(TypeError, match="event array or its dtype"):
         sensor_size(W, H, [1, 2])
+
+
+@pytest.mark.parametrize("name, axis", [("events", None), ("gradient_events", 0), ("gradient_events", 1)])
+def test_random_flip_polarity_negates_a_brightness_or_one_axis_stream(streams, name, axis):
+    """Issue 26: tonic's RandomFlipPolarity inverts p as a bool. On a brightness stream or one gradient
+    axis (to_tonic(..., axis=...): ON = upward step) that is exactly negating every step."""
+    ev = streams[name]
+    tonic_events = to_tonic(ev, axis=axis)
+    flipped = tt.RandomFlipPolarity(p=1.0)(tonic_events.copy())
+    np.testing.assert_array_equal(flipped["p"], 1 - tonic_events["p"])
+    np.testing.assert_array_equal(flipped[["x", "y", "t"]], tonic_events[["x", "y", "t"]])
+
+
+def test_random_flip_polarity_breaks_the_four_channel_gradient_layout(streams):
+    """...but on the 4-channel gradient layout (axis and sign in p) it sends every Y event to channel 0
+    (X, downward): flip each axis' stream instead (documented in to_tonic)."""
+    four = to_tonic(streams["gradient_events"])
+    flipped = tt.RandomFlipPolarity(p=1.0)(four.copy())
+    assert set(np.unique(flipped["p"][four["p"] >= 2])) == {0}
