@@ -19,7 +19,7 @@ from pathlib import Path
 
 from gevsim.cli._common import _progress
 from gevsim.cli.emulate import cmd_emulate
-from gevsim.cli.files import cmd_export, cmd_reconstruct
+from gevsim.cli.files import cmd_export, cmd_reconstruct, cmd_view
 from gevsim.cli.info import cmd_info, cmd_presets, cmd_scenes, cmd_validate
 from gevsim.cli.parser import build_parser
 from gevsim.cli.render import cmd_render
@@ -27,7 +27,7 @@ from gevsim.cli.runs import cmd_dataset, cmd_study
 from gevsim.errors import GevsimError, one_line
 
 __all__ = ["build_parser", "main", "_progress", "cmd_dataset", "cmd_emulate", "cmd_export", "cmd_info",
-           "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_validate"]
+           "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_validate", "cmd_view"]
 
 
 def main(argv: list[str] | None = None) -> int:

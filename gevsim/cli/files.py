@@ -48,6 +48,16 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_view(args: argparse.Namespace) -> int:
+    from gevsim.view import view
+
+    streams = [s for part in args.streams or [] for s in part.split(",") if s] or None
+    out = view(args.file, args.out, window_us=int(round(args.window_ms * 1000)), streams=streams, fps=args.fps,
+               start_us=int(round(args.start_ms * 1000)))
+    print(f"gevsim: wrote {out}", file=sys.stderr)
+    return 0
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     from gevsim.io.exports import export
 

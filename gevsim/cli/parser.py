@@ -111,6 +111,16 @@ def build_parser() -> argparse.ArgumentParser:
                    "only an earlier gevsim export of that format, never the input)")
     x.add_argument("--stream", action="append", metavar="NAME", help="streams to export (default: all)")
 
+    v = sub.add_parser("view", help="draw an emulation file's events as pictures beside the ground truth "
+                       "(.png strip, .gif or .mp4 animation)")
+    v.add_argument("file", help="an emulation file (.h5)")
+    v.add_argument("--out", required=True, help="a .png (up to 8 windows, one under the other), .gif or .mp4 "
+                   "(every window; .mp4 needs imageio-ffmpeg); replaces only an earlier `gevsim view` picture")
+    v.add_argument("--window-ms", type=float, default=1.0, help="time window of one picture, ms (default 1)")
+    v.add_argument("--start-ms", type=float, default=0.0, help="where the first window starts, ms (default 0)")
+    v.add_argument("--streams", action="append", metavar="NAMES", help="streams to draw (default: all)")
+    v.add_argument("--fps", type=float, default=10.0, help="animation frames per second (default 10)")
+
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
     d.add_argument("config", help="dataset config (keys: docs/config.md)")
     d.add_argument("--out", required=True, help="output folder (missing, empty or an earlier dataset); finished "

@@ -1,0 +1,150 @@
+"""``gevsim view``: see what a sensor made of a scene, as event frames beside the ground truth.
+
+Each time window (``window_us``) becomes one picture with a panel per stream, side by side with the
+ground-truth log frame nearest the window's end (tone-mapped from the run's own range), and a time
+bar under them:
+
+- brightness streams (DVS, CSDVS): per pixel, the net count of the window's events; ON blue, OFF
+  red, on a dark background, brighter with more events (saturating at :data:`SATURATE` events);
+- gradient streams: per pixel, the net upward steps of each axis; X in the red channel, Y in the
+  green, above mid-grey for upward steps and below it for downward ones.
+
+``.png`` writes a strip of up to :data:`STRIP_ROWS` windows (one under the other); ``.gif`` an
+animation of every window at ``fps``; ``.mp4`` the same through imageio's ffmpeg plugin
+(``imageio-ffmpeg``), refused with a clear message where it is not installed.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+
+import numpy as np
+
+from gevsim.errors import ConfigError, suggest
+from gevsim.io.atomic import atomic_path
+from gevsim.io.hdf5 import EventReader
+from gevsim.io.ownership import check_file
+
+__all__ = ["render_windows", "view"]
+
+#: Events at a pixel at which its colour saturates.
+SATURATE = 3
+#: Windows in a PNG strip at most.
+STRIP_ROWS = 8
+#: What marks a picture as written by `gevsim view` (PNG Software text, GIF comment).
+MARK = "gevsim view"
+_ON, _OFF, _BACK = np.array([70, 140, 255]), np.array([255, 80, 60]), np.array([24, 24, 24])
+
+
+def _brightness_panel(ev: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    net = np.zeros(shape)
+    np.add.at(net, (ev["y"], ev["x"]), np.where(ev["p"] > 0, 1.0, -1.0))
+    level = np.clip(np.abs(net) / SATURATE, 0, 1)[..., None]
+    colour = np.where((net > 0)[..., None], _ON, _OFF)
+    return (_BACK + level * (colour - _BACK)).astype(np.uint8)
+
+
+def _gradient_panel(ev: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    img = np.full((*shape, 3), 128.0)
+    for axis in (0, 1):
+        sel = ev[ev["axis"] == axis]
+        net = np.zeros(shape)
+        np.add.at(net, (sel["y"], sel["x"]), sel["p"].astype(float))
+        img[..., axis] += 127 * np.clip(net / SATURATE, -1, 1)
+    return img.astype(np.uint8)
+
+
+def _truth_panel(frames: np.ndarray, t_us: np.ndarray, at_us: int, low: float, high: float) -> np.ndarray:
+    k = int(np.clip(np.searchsorted(t_us, at_us, side="right") - 1, 0, len(frames) - 1))
+    grey = np.clip((frames[k] - low) / max(high - low, 1e-12), 0, 1) * 255
+    return np.repeat(grey[..., None], 3, axis=2).astype(np.uint8)
+
+
+def _time_bar(width: int, start_us: int, end_us: int, total_us: int) -> np.ndarray:
+    bar = np.full((4, width, 3), 40, np.uint8)
+    a, b = (int(round(width * v / max(total_us, 1))) for v in (start_us, end_us))
+    bar[:, a:max(b, a + 1)] = (230, 230, 230)
+    return bar
+
+
+def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,
+                   start_us: int = 0, count: int | None = None) -> tuple[np.ndarray, list[str]]:
+    """(N, height, width, 3) uint8 pictures of the windows ``[start + k window, start + (k + 1) window)``
+    of an emulation file, and the panels' names (left to right)."""
+    if window_us < 1:
+        raise ConfigError(f"the window must be at least 1 us, got {window_us}", key="--window-ms")
+    with EventReader(path) as r:
+        names = list(r.streams) if streams is None else streams
+        for s in names:
+            if s not in r.streams:
+                raise ConfigError(f"no stream {s!r}{suggest(s, r.streams)}; streams: {', '.join(r.streams)}",
+                                  source=str(path), key="--streams")
+        shape, total = (r.height, r.width), r.t_end_us
+        truth = r.frames("log_photocurrent") if "log_photocurrent" in r.frame_names else None
+        n = max(1, (total - start_us + window_us - 1) // window_us)
+        n = min(n, count) if count else n
+        pictures = []
+        low, high = (np.percentile(truth[0], [1, 99]) if truth is not None else (0.0, 1.0))
+        for k in range(n):
+            a, b = start_us + k * window_us, start_us + (k + 1) * window_us
+            panels = []
+            for s in names:
+                ev = r.read(s, t_start_us=a, t_end_us=b)
+                gradient = "axis" in (ev.dtype.names or ())
+                panels.append(_gradient_panel(ev, shape) if gradient else _brightness_panel(ev, shape))
+            if truth is not None:
+                panels.append(_truth_panel(truth[0], truth[1], b, float(low), float(high)))
+            gap = np.zeros((shape[0], 2, 3), np.uint8)
+            row = np.concatenate([p for panel in panels for p in (panel, gap)][:-1], axis=1)
+            pictures.append(np.concatenate([row, _time_bar(row.shape[1], a, b, total)], axis=0))
+    return np.asarray(pictures), names + (["ground truth"] if truth is not None else [])
+
+
+def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,
+         fps: float = 10.0, start_us: int = 0) -> Path:
+    """Write the event pictures of an emulation file (:func:`render_windows`) to ``out``: ``.png`` (a strip
+    of up to STRIP_ROWS windows), ``.gif`` or ``.mp4`` (every window, ``fps`` a second)."""
+    import imageio.v3 as iio
+
+    out = Path(out)
+    kind = out.suffix.lower()
+    if kind not in (".png", ".gif", ".mp4"):
+        raise ConfigError(f"unknown picture type {kind or '(none)'!r}; name a .png, .gif or .mp4 file", source=str(out))
+    if kind == ".mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
+        raise ConfigError("writing .mp4 needs imageio's ffmpeg plugin: pip install imageio-ffmpeg (or write a .gif)",
+                          source=str(out))
+    if not fps > 0:
+        raise ConfigError(f"fps must be > 0, got {fps}", key="--fps")
+    check_file(out, "picture", _is_ours, inputs=[path])  # replaces only an earlier `gevsim view` picture
+    pictures, _ = render_windows(path, window_us=window_us, streams=streams, start_us=start_us,
+                                 count=STRIP_ROWS if kind == ".png" else None)
+    from PIL import Image, PngImagePlugin
+
+    with atomic_path(out) as tmp:
+        if kind == ".png":
+            info = PngImagePlugin.PngInfo()
+            info.add_text("Software", MARK)
+            Image.fromarray(np.concatenate(list(pictures), axis=0)).save(tmp, format="PNG", pnginfo=info)
+        elif kind == ".gif":
+            frames = [Image.fromarray(p) for p in pictures]
+            frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=1000.0 / fps,
+                           loop=0, comment=MARK.encode())
+        else:
+            iio.imwrite(tmp, pictures, extension=".mp4", fps=fps, metadata={"comment": MARK})
+    return out
+
+
+def _is_ours(path: Path) -> bool:
+    """A picture `gevsim view` wrote (its Software text or comment names gevsim)."""
+    if path.suffix.lower() == ".mp4":
+        return MARK.encode() in path.read_bytes()[-65536:] or MARK.encode() in path.read_bytes()[:65536]
+    try:
+        from PIL import Image
+
+        with Image.open(path) as img:
+            tag = img.info.get("Software") or img.info.get("comment") or b""
+    except Exception:
+        return False
+    return (tag.decode(errors="replace") if isinstance(tag, bytes) else str(tag)) == MARK
