@@ -109,6 +109,9 @@ def render_pose(
 
     if target is None:
         size, count = fixed_batches(-(-request["spp"] // per), r.sampler, cap=cap)
+        if request.get("batches"):  # fewer, larger batches: each costs ~70 ms of tracing whatever its size
+            count = int(request["batches"])
+            size = exact_count(r.sampler, min(cap, -(-request["spp"] // (per * count))))
         for _ in range(count):
             batch(size)
         stopped = "fixed"

@@ -154,11 +154,13 @@ def box_resample(cells: np.ndarray, rect: np.ndarray, *, power: int = 1) -> np.n
     variance of that mean when ``cells`` holds independent cells' variances."""
     x0, y0, x1, y1 = rect
     area = (x1 - x0) * (y1 - y0)
-    total = np.zeros((cells.shape[0], *x0.shape, cells.shape[3]))
-    for iy, wy in _overlaps(y0, y1, cells.shape[1]):
-        for ix, wx in _overlaps(x0, x1, cells.shape[2]):
-            total += ((wy * wx / area) ** power)[None, ..., None] * cells[:, iy, ix]
-    return total.astype(np.float32)
+    k, hc, wc, c = cells.shape
+    flat = np.ascontiguousarray(np.moveaxis(cells, 0, 2).reshape(hc, wc, k * c))  # one gather serves K x C values
+    total = np.zeros((*x0.shape, k * c))
+    for iy, wy in _overlaps(y0, y1, hc):
+        for ix, wx in _overlaps(x0, x1, wc):
+            total += ((wy * wx / area) ** power)[..., None] * flat[iy, ix]
+    return np.moveaxis(total.reshape(*x0.shape, k, c), 2, 0).astype(np.float32)
 
 
 def pixel_error(se_map: np.ndarray, grid: PinholeGrid, rect: np.ndarray) -> np.ndarray:
