@@ -26,15 +26,19 @@ def events(n, dtype, seed):
     return ev
 
 
+def write_run(path, **streams):
+    """An emulation file holding ``streams`` (name -> events), 120 ms long."""
+    with EventWriter(path, width=W, height=H, config_toml="", seed=0) as w:
+        for name, ev in streams.items():
+            w.append(name, ev)
+        w.close(t_end_us=120_000)
+    return path
+
+
 @pytest.fixture
 def emulation(tmp_path):
-    path = tmp_path / "run.h5"
     dvs, grad = events(5000, BRIGHTNESS_DTYPE, 1), events(7000, GRADIENT_DTYPE, 2)
-    with EventWriter(path, width=W, height=H, config_toml="", seed=0) as w:
-        w.append("events", dvs)
-        w.append("gradient_events", grad)
-        w.close(t_end_us=120_000)
-    return path, dvs, grad
+    return write_run(tmp_path / "run.h5", events=dvs, gradient_events=grad), dvs, grad
 
 
 def same(aedat, ev):
@@ -74,13 +78,8 @@ def test_a_reader_taking_the_first_event_stream_gets_the_dvs(tmp_path):
     (dv-processing's getNextEventBatch() without a name, tonic's read_aedat4) got the CSDVS events."""
     import dv_processing as dv
 
-    path = tmp_path / "run.h5"
     dvs, cs = events(3000, BRIGHTNESS_DTYPE, 3), events(1000, BRIGHTNESS_DTYPE, 4)
-    with EventWriter(path, width=W, height=H, config_toml="", seed=0) as w:
-        w.append("events", dvs)
-        w.append("csdvs_events", cs)
-        w.close(t_end_us=120_000)
-    export_aedat4(path, tmp_path / "run.aedat4")
+    export_aedat4(write_run(tmp_path / "run.h5", events=dvs, csdvs_events=cs), tmp_path / "run.aedat4")
     recording = dv.io.MonoCameraRecording(str(tmp_path / "run.aedat4"))
     parts = []
     while (batch := recording.getNextEventBatch()) is not None:  # no name: the camera's (first) event stream

@@ -14,6 +14,16 @@ def names(files):
     return sorted(f.name for f in files)
 
 
+def lamp_scene(folder, module):
+    """A manifest beside ``textured.toml`` whose builder b.py takes its lamp's SIZE from ``module``."""
+    (folder / "b.py").write_text(
+        f"from {module} import SIZE\n\nfrom gevsim.render import shapes as s\n\n\ndef build(options):\n"
+        "    return {'lamp': s.rectangle([0, 0, 4.5], [SIZE, SIZE], facing='-z', emitter=s.area_light())}\n")
+    manifest = folder / "b.toml"
+    manifest.write_text((folder / "textured.toml").read_text().replace('"textured.py"', '"b.py"'))
+    return manifest
+
+
 def test_manifests_builder_and_every_loaded_file_are_listed(tmp_path, variant):
     manifest = textured_scene(tmp_path)
     assert names(scene_input_files(load(manifest))) == ["backdrop.exr", "card_texture.npy", "textured.py",
@@ -50,11 +60,7 @@ def test_from_helper_import_is_found_in_every_build_of_a_process(tmp_path, varia
     helper = f"helper_{tmp_path.name}"  # a module name no other test imports
     (tmp_path / f"{helper}.py").write_text(f"from {helper}_b import SIZE  # a helper's own helper\n")
     (tmp_path / f"{helper}_b.py").write_text("SIZE = 2.0\n")
-    (tmp_path / "b.py").write_text(
-        f"from {helper} import SIZE\n\nfrom gevsim.render import shapes as s\n\n\ndef build(options):\n"
-        "    return {'lamp': s.rectangle([0, 0, 4.5], [SIZE, SIZE], facing='-z', emitter=s.area_light())}\n")
-    manifest = tmp_path / "b.toml"
-    manifest.write_text((tmp_path / "textured.toml").read_text().replace('"textured.py"', '"b.py"'))
+    manifest = lamp_scene(tmp_path, helper)
     monkeypatch.syspath_prepend(str(tmp_path))
     for name in (helper, f"{helper}_b"):
         monkeypatch.delitem(sys.modules, name, raising=False)
@@ -107,12 +113,7 @@ def test_a_library_on_pythonpath_is_not_a_scene_input(tmp_path, variant, monkeyp
     (lib / "table.txt").write_text("2.0")
     (lib / f"{name}.py").write_text("from pathlib import Path\n\n"
                                     "SIZE = float((Path(__file__).parent / 'table.txt').read_text())\n")
-    scene = tmp_path / "scene"
-    (scene / "b.py").write_text(
-        f"from {name} import SIZE\n\nfrom gevsim.render import shapes as s\n\n\ndef build(options):\n"
-        "    return {'lamp': s.rectangle([0, 0, 4.5], [SIZE, SIZE], facing='-z', emitter=s.area_light())}\n")
-    manifest = scene / "b.toml"
-    manifest.write_text((scene / "textured.toml").read_text().replace('"textured.py"', '"b.py"'))
+    manifest = lamp_scene(tmp_path / "scene", name)
     monkeypatch.syspath_prepend(str(lib))
     monkeypatch.delitem(sys.modules, name, raising=False)
     first = scene_digest(manifest)  # the first build imports the library (it opens table.txt)
