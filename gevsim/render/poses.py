@@ -28,7 +28,7 @@ import numpy as np
 import gevsim
 from gevsim.errors import ConfigError
 from gevsim.render import rotation
-from gevsim.render.basis_cache import RenderCache, cache_key
+from gevsim.render.basis_cache import CACHE_VERSION, RenderCache, cache_key
 from gevsim.render.convergence import error_percentiles
 from gevsim.render.manifest_checks import check_rendered
 from gevsim.render.scene import MitsubaScene, content_hash
@@ -115,10 +115,13 @@ def rotation_applies(scene: MitsubaScene, times: np.ndarray) -> str | None:
 
 
 def _grid_key(scene: MitsubaScene, grid, method: str = "rotation") -> str:
+    """Cache key of a reference window: what :func:`~gevsim.render.basis_cache.cache_key` holds for a pose
+    (the estimator's version included), with the grid in place of the pose."""
     r = scene.manifest.render
     payload = {"scene": content_hash(scene.manifest), "inputs": scene.inputs_digest, "grid": grid.key(),
                "groups": list(scene.manifest.group_names), "seed": r.seed, "sampler": r.sampler,
-               "variant": scene.variant.variant, "method": method, "version": rotation.CACHE_VERSION}
+               "variant": scene.variant.variant, "method": method, "version": rotation.CACHE_VERSION,
+               "estimator": CACHE_VERSION}
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:32]
 
 
@@ -126,7 +129,6 @@ def render_rotation(scene: MitsubaScene, times: np.ndarray, request: dict, cache
                     progress: Progress) -> PoseImages:
     """Poses of a camera turning about a fixed centre, resampled from one render per segment
     (:func:`gevsim.render.rotation.plan`): its seconds are booked on the segment's first pose."""
-
     m, r = scene.manifest, scene.manifest.render
     cameras = [scene.pose_at(float(t)).camera for t in times]
     segments = rotation.plan(cameras, fov_deg=m.fov_deg, width=r.width, height=r.height)
