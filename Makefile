@@ -42,6 +42,10 @@ demo: $(STAMP) llvm
 	$(VENV)/bin/gevsim info
 	$(VENV)/bin/gevsim render office --out $(DEMO_OUT) --width 96 --height 72 --frames 4000 --plots --cache .gevsim-cache
 	$(VENV)/bin/gevsim study experiments/demo.toml --out out/demo_study --cache .gevsim-cache
+	$(VENV)/bin/gevsim emulate experiments/office_small.toml --out out/office_small.h5 --cache .gevsim-cache -q
+	$(VENV)/bin/gevsim view out/office_small.h5 --out out/office_small.gif --window-ms 1
+	$(VENV)/bin/gevsim emulate experiments/street_small.toml --out out/street_small.h5 --cache .gevsim-cache -q
+	$(VENV)/bin/gevsim view out/street_small.h5 --out out/street_small.gif --window-ms 2
 
 test: $(STAMP) llvm
 	$(PY) -m pytest -q
