@@ -1,8 +1,8 @@
 """``gevsim view``: see what a sensor made of a scene, as event frames beside the ground truth.
 
 Each time window (``window_us``) becomes one picture with a panel per stream, side by side with the
-ground-truth log frame nearest the window's end (tone-mapped from the run's own range), and a time
-bar under them:
+ground-truth log frame nearest the window's end (tone-mapped from the run's own range), their names
+above them and a time bar under them:
 
 - brightness streams (DVS, CSDVS): per pixel, the net count of the window's events; ON blue, OFF
   red, on a dark background, brighter with more events (saturating at :data:`SATURATE` events);
@@ -31,6 +31,8 @@ __all__ = ["render_windows", "view"]
 
 #: Events at a pixel at which its colour saturates.
 SATURATE = 3
+#: Height of the strip naming the panels (px).
+LABEL_PX = 12
 #: Windows in a PNG strip at most.
 STRIP_ROWS = 8
 #: What marks a picture as written by `gevsim view` (PNG Software text, GIF comment).
@@ -69,6 +71,17 @@ def _time_bar(width: int, start_us: int, end_us: int, total_us: int) -> np.ndarr
     return bar
 
 
+def _labels(names: list[str], panel_width: int, width: int) -> np.ndarray:
+    """A 12 px strip naming each panel (PIL's built-in bitmap font), to go above a row of panels."""
+    from PIL import Image, ImageDraw
+
+    strip = Image.new("RGB", (width, LABEL_PX), (40, 40, 40))
+    draw = ImageDraw.Draw(strip)
+    for i, name in enumerate(names):
+        draw.text((i * (panel_width + 2) + 2, 1), name, fill=(230, 230, 230))
+    return np.asarray(strip, np.uint8)
+
+
 def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,
                    start_us: int = 0, count: int | None = None) -> tuple[np.ndarray, list[str]]:
     """(N, height, width, 3) uint8 pictures of the windows ``[start + k window, start + (k + 1) window)``
@@ -86,6 +99,7 @@ def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: l
         n = max(1, (total - start_us + window_us - 1) // window_us)
         n = min(n, count) if count else n
         pictures = []
+        titles = names + (["ground truth"] if truth is not None else [])
         low, high = (np.percentile(truth[0], [1, 99]) if truth is not None else (0.0, 1.0))
         for k in range(n):
             a, b = start_us + k * window_us, start_us + (k + 1) * window_us
@@ -98,8 +112,9 @@ def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: l
                 panels.append(_truth_panel(truth[0], truth[1], b, float(low), float(high)))
             gap = np.zeros((shape[0], 2, 3), np.uint8)
             row = np.concatenate([p for panel in panels for p in (panel, gap)][:-1], axis=1)
-            pictures.append(np.concatenate([row, _time_bar(row.shape[1], a, b, total)], axis=0))
-    return np.asarray(pictures), names + (["ground truth"] if truth is not None else [])
+            label = _labels(titles, shape[1], row.shape[1])
+            pictures.append(np.concatenate([label, row, _time_bar(row.shape[1], a, b, total)], axis=0))
+    return np.asarray(pictures), titles
 
 
 def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,

@@ -7,7 +7,7 @@ import pytest
 
 from gevsim.cli import main
 from gevsim.io import EventReader
-from gevsim.view import SATURATE, render_windows
+from gevsim.view import LABEL_PX, SATURATE, render_windows
 
 iio = pytest.importorskip("imageio.v3")
 
@@ -18,11 +18,11 @@ def test_each_window_draws_its_own_events_and_the_ground_truth(good):
         dvs = r.read("events", t_start_us=0, t_end_us=1000)
     pictures, names = render_windows(good, window_us=1000, streams=["events", "gradient_events"])
     assert names == ["events", "gradient_events", "ground truth"]
-    assert pictures.shape == (-(-t_end // 1000), h + 4, 3 * w + 4, 3)
+    assert pictures.shape == (-(-t_end // 1000), LABEL_PX + h + 4, 3 * w + 4, 3)
     # A pixel with net ON events is blue, net OFF red; a pixel without events is the background.
     net = np.zeros((h, w))
     np.add.at(net, (dvs["y"], dvs["x"]), np.where(dvs["p"] > 0, 1, -1))
-    panel = pictures[0, :h, :w].astype(int)
+    panel = pictures[0, LABEL_PX:LABEL_PX + h, :w].astype(int)
     on, off, none = net >= SATURATE, net <= -SATURATE, net == 0
     assert (panel[on][:, 2] > panel[on][:, 0]).all() and (panel[off][:, 0] > panel[off][:, 2]).all()
     assert (panel[none] == 24).all()
