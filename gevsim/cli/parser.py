@@ -72,6 +72,13 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=_non_negative_int, help="frame mode: seed of the DVS threshold mismatch")
     e.add_argument("--threshold-mismatch", type=_non_negative, metavar="LN", dest="threshold_mismatch",
                    help="frame mode: sigma of the DVS threshold mismatch (ln units; default 0)")
+    e.add_argument("--sensor", metavar="NAME", help="frame mode through a real sensor: a preset (ideal, dvs128, "
+                   "davis346, imx636) or preset file; the frames become light on the chip (with "
+                   "--illuminance-lux) and the scene-mode pixel runs on them: photoreceptor, noise, bandwidth, "
+                   "leak, refractory period, readout. Without it: the paper's frame mode")
+    e.add_argument("--illuminance-lux", type=_positive, metavar="LUX", dest="illuminance_lux",
+                   help="with --sensor: the chip illuminance (lux) of a frame value of 1 after sRGB decoding "
+                        "(D65 light)")
     e.add_argument("--log", choices=("offset", "linlog"),
                    help="frame mode: the DVS sees ln(f + 1/255) (offset, default) or ln(f) above 20/255 and "
                         "its tangent below (linlog, as v2e's lin-log)")

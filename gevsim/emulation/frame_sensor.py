@@ -1,0 +1,65 @@
+"""Frame mode through the physical pixel: what a real sensor would make of a video at a light level.
+
+The paper's frame mode (:mod:`gevsim.emulation.frames`) takes the log of the frames' gray values
+directly: no photoreceptor, no noise, no bandwidth. Here the frames become light on the chip
+instead, and the scene-mode sensor runs on them (photoreceptor, shot and read noise, dark current,
+bandwidth, refractory period, leak, readout; :func:`gevsim.emulation.driver.run`):
+
+- the gray values (8-bit video and images are sRGB-encoded) are decoded to linear light
+  (IEC 61966-2-1, :func:`gevsim.render.shapes.srgb_to_linear`);
+- linear value 1 is ``illuminance_lux`` on the chip (the focal plane), of a lamp spectrum
+  (``spectrum``, CIE D65 unless given): photocurrent = value x lux x pitch^2 x fill factor x the
+  pixel's responsivity (A/lm) for that spectrum (:func:`gevsim.optics.group_photocurrent_factors`
+  without the lens, which chip illuminance already includes);
+- between frames the light changes linearly (the frames are the poses of a one-group basis;
+  :func:`gevsim.illumination.mix_poses`), as v2e interpolates (Hu, Liu & Delbruck, CVPR-W 2021).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from gevsim._validate import real
+from gevsim.emulation.driver import Setup
+from gevsim.illumination import from_spec
+from gevsim.optics import Lens, Pixel, group_photocurrent_factors, lamp_spectrum
+from gevsim.optics.photometry import K_M_LM_PER_W
+from gevsim.pixel.presets import SensorPreset
+from gevsim.render.backend import VariantChoice
+from gevsim.render.manifest import SceneManifest
+from gevsim.render.quality import RenderSettings
+from gevsim.render.shapes import srgb_to_linear
+
+#: The brightest chip illuminance accepted (lux): 1e6 is ~10x direct sunlight imaged at f/1.
+MAX_CHIP_LUX = 1e6
+
+
+def amperes_per_lux(preset: SensorPreset, spectrum: str = "D65") -> float:
+    """Photocurrent of one pixel of ``preset`` per lux of ``spectrum`` on the chip (A/lx)."""
+    lens = Lens()
+    pixel = Pixel(pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor, qe=preset.qe)
+    factor = float(group_photocurrent_factors([lamp_spectrum(spectrum)], pixel=pixel, lens=lens)[0])
+    return factor / (lens.irradiance_factor * K_M_LM_PER_W)
+
+
+def frame_setup(frames: np.ndarray, t_s: np.ndarray, *, preset: SensorPreset, illuminance_lux: float,
+                source: str | os.PathLike, spectrum: str = "D65") -> Setup:
+    """A driver :class:`~gevsim.emulation.driver.Setup` whose light is the frames (F, H, W) in [0, 1]
+    (sRGB-encoded gray) at times ``t_s``, value 1 being ``illuminance_lux`` on the chip."""
+    lux = real(illuminance_lux, "--illuminance-lux", low=0.0, low_open=True, high=MAX_CHIP_LUX)
+    frames = np.asarray(frames, np.float64)
+    t = np.asarray(t_s, np.float64) - float(t_s[0])
+    a_per_lux = amperes_per_lux(preset, spectrum)
+    current = (srgb_to_linear(frames) * lux * a_per_lux)[:, None]  # (F, 1, H, W): one "light group"
+    h, w = frames.shape[1:]
+    raw = {"frames": {"source": str(source), "count": int(len(frames)), "illuminance_lux": lux,
+                      "spectrum": spectrum, "decoding": "sRGB (IEC 61966-2-1)"}}
+    manifest = SceneManifest(name=Path(source).name or "frames", source=str(source), builder=Path(source),
+                             options={}, render=RenderSettings(width=int(w), height=int(h)),
+                             duration_s=float(t[-1]), fov_deg=60.0, camera=(), motion=(), light_groups=(), raw=raw)
+    return Setup(manifest, preset, t, current, (from_spec({"type": "dc"}),), float(t[-1]),
+                 VariantChoice("none", "frame mode: frames, no renderer"), current_noise=None,
+                 render_quality={}, chip_lux_per_a=np.array([1.0 / a_per_lux]))
