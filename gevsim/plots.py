@@ -18,6 +18,7 @@ from gevsim.reconstruct.tonemap import ToneMap
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from gevsim.illumination import Waveform
     from gevsim.render.basis import BasisSet
 
 
@@ -66,17 +67,28 @@ def contact_sheet(frames: np.ndarray, times_s: Sequence[float], path: str | os.P
     save_figure(fig, path)
 
 
+def waveform_samples(wf: Waveform, t_end_s: float, n: int = 4000) -> tuple[np.ndarray, np.ndarray]:
+    """(t, w(t)) to draw a waveform over [0, t_end]: ``n`` even samples plus a pair just either side of
+    each breakpoint (a PWM's edges), so a line through them draws a jump as a vertical step, not as
+    the slope between two grid samples."""
+    t = np.linspace(0.0, t_end_s, n)
+    bp = np.asarray(wf.breakpoints_s(0.0, t_end_s), float)
+    eps = 1e-9 * t_end_s
+    t = np.unique(np.clip(np.concatenate([t, bp - eps, bp + eps]), 0.0, t_end_s))
+    return t, np.asarray(wf(t), float)
+
+
 def waveform_plot(basis: BasisSet, times_s: Sequence[float], mean_lux: Sequence[float], path: str | os.PathLike, *,
                   title: str = "") -> None:
     """Lamp waveforms (top) and mean focal-plane illuminance of the frames (bottom)."""
     plt = _pyplot()
     t_end = max(float(times_s[-1]) if len(times_s) else 0.0, 1e-6)
-    t = np.linspace(0.0, t_end, 4000)
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
     for name, wf in zip(basis.groups, basis.waveforms):
-        top.plot(1e3 * t, wf(t), label=f"{name}: {type(wf).__name__}")
+        t, w = waveform_samples(wf, t_end)
+        top.plot(1e3 * t, w, label=f"{name}: {type(wf).__name__}")
     top.set_ylabel("relative output w(t)")
-    top.legend(loc="upper right", fontsize=8)
+    top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside the curves, not over them
     top.grid(alpha=0.3)
     bottom.plot(1e3 * np.asarray(times_s), mean_lux, "o-", ms=3)
     bottom.set_xlabel("time (ms)")
