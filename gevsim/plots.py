@@ -50,7 +50,8 @@ def contact_sheet(frames: np.ndarray, times_s: Sequence[float], path: str | os.P
 
     idx = np.unique(np.linspace(0, len(frames) - 1, min(max_frames, len(frames))).round().astype(int))
     log_e = np.log(np.maximum(np.asarray(frames, np.float64), 1e-12))
-    shown = ToneMap.from_ground_truth(log_e)(log_e)  # one scale for the whole sequence
+    tone = ToneMap.from_ground_truth(log_e)
+    shown = tone(log_e)  # one scale for the whole sequence
     cols = min(4, len(idx))
     rows = int(np.ceil(len(idx) / cols))
     h, w = frames.shape[1:3]
@@ -63,8 +64,24 @@ def contact_sheet(frames: np.ndarray, times_s: Sequence[float], path: str | os.P
         y = luminance(frames[i] if frames.shape[-1] == 3 else frames[i, ..., 0])
         ax.set_title(f"t = {1e3 * times_s[i]:.2f} ms, {float(illuminance_lux(y).mean()):.1f} lx", fontsize=9)
     fig.suptitle(f"{title}: focal-plane irradiance (log scale)", fontsize=11)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 0.88, 1.0))
+    _lux_scale(fig, tone)
     save_figure(fig, path)
+
+
+def _lux_scale(fig: Figure, tone: ToneMap) -> None:
+    """A scale bar beside a contact sheet: grey level -> focal-plane illuminance (lx; 683 x the photopic-
+    equivalent irradiance the log tone map spans)."""
+    import matplotlib as mpl
+
+    from gevsim.optics.photometry import K_M_LM_PER_W
+
+    cax = fig.add_axes((0.9, 0.12, 0.025, 0.72))
+    bar = fig.colorbar(mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0.0, 1.0), cmap="gray"), cax=cax)
+    ticks = np.linspace(0.0, 1.0, 5)
+    bar.set_ticks(ticks.tolist())
+    bar.set_ticklabels([f"{K_M_LM_PER_W * np.exp(tone.low + v * (tone.high - tone.low)):.3g}" for v in ticks])
+    bar.set_label("illuminance on the chip (lx, log scale)")
 
 
 def waveform_samples(wf: Waveform, t_end_s: float, n: int = 4000) -> tuple[np.ndarray, np.ndarray]:

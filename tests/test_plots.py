@@ -18,3 +18,23 @@ def test_a_pwm_is_drawn_with_its_edges_and_only_its_two_levels():
     for e in edges[(edges > 0) & (edges < 0.01)]:
         before, after = w[np.searchsorted(t, e) - 1], w[np.searchsorted(t, e, side="right")]
         assert abs(t[np.searchsorted(t, e) - 1] - e) < 1e-9 and before != after  # a vertical step at e
+
+
+def test_the_contact_sheet_has_a_scale_in_lux(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from gevsim.plots import _lux_scale, contact_sheet
+    from gevsim.reconstruct.tonemap import ToneMap
+
+    frames = np.exp(np.linspace(-6, 0, 4 * 6 * 8)).reshape(4, 6, 8, 1)  # W/m^2, photopic-equivalent
+    contact_sheet(frames, [0.0, 1e-3, 2e-3, 3e-3], tmp_path / "sheet.png", title="t")
+    assert (tmp_path / "sheet.png").stat().st_size > 0
+    tone = ToneMap(low=-6.0, high=0.0)
+    fig = plt.figure()
+    _lux_scale(fig, tone)
+    labels = [t.get_text() for t in fig.axes[-1].get_yticklabels()]
+    assert labels[0] == f"{683.0 * np.exp(-6.0):.3g}" and labels[-1] == "683"  # grey 0 and 1 in lux
+    plt.close(fig)
