@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gevsim.render.rays import image_points, primary_rays, sensor_grid
+from gevsim.render.parallax import cast
+from gevsim.render.rays import directions, image_points, sensor_grid
 from gevsim.render.scene import MitsubaScene
-from gevsim.render.trajectory import Pose
 
 #: Time step of the velocities' central differences (s).
 VELOCITY_STEP_S = 1e-6
@@ -45,36 +45,6 @@ class FrameTruth:
     camera: np.ndarray  # (4, 4) camera-to-world
     linear_velocity_m_s: np.ndarray  # (3,) world frame
     angular_velocity_rad_s: np.ndarray  # (3,) world frame (axis x rate)
-
-
-def _surface_points(scene: MitsubaScene, pose: Pose, unit: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """World points (H*W, 3) seen through the pixel centres at ``pose``, whether each is a surface
-    (H*W,), and the index of the moving object it lies on (-1: the static scene). ``unit`` (H*W, 3)
-    are the rays' unit directions in float64: a point is the camera centre plus its direction times
-    the hit distance (float32 in Mitsuba), so a point re-projected by the same camera lands on its
-    pixel centre to float64 precision."""
-    import drjit as dr
-    import mitsuba as mi
-
-    m = scene.manifest
-    w, h = m.render.width, m.render.height
-    scene.set_pose(pose)
-    grid = sensor_grid(pose.camera, fov_deg=m.fov_deg, width=w, height=h)
-    idx = dr.arange(mi.UInt32, w * h)
-    centre = mi.Vector2f(mi.Float(idx % w), mi.Float(idx // w)) + 0.5
-    near = float(scene.scene.sensors()[0].near_clip())
-    ray = primary_rays(grid, centre, near_clip_m=near)
-    si = scene.scene.ray_intersect(ray)
-    owner = dr.full(mi.Int32, -1, w * h)
-    shapes = {s.id(): s for s in scene.scene.shapes()}
-    for i, motion in enumerate(m.motion):
-        for obj in motion.objects:
-            owner[si.shape == mi.ShapePtr(shapes[obj])] = i
-    valid = np.array(si.is_valid(), dtype=bool).reshape(-1)
-    forward = unit @ pose.camera[:3, 2]  # the z of each unit direction in the camera frame
-    distance = np.where(valid, np.array(si.t, dtype=np.float64).reshape(-1), 0.0) + near / forward
-    points = pose.camera[:3, 3] + unit * distance[:, None]
-    return points, valid, np.array(owner, dtype=np.int64).reshape(-1)
 
 
 def _velocities(scene: MitsubaScene, t_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -97,10 +67,11 @@ def frame_truth(scene: MitsubaScene, t_s: float, dt_s: float) -> FrameTruth:
     now, later = scene.pose_at(float(t_s)), scene.pose_at(float(t_s + dt_s))
     grid = sensor_grid(now.camera, fov_deg=m.fov_deg, width=w, height=h)
     v, u = np.mgrid[0:h, 0:w].astype(float) + 0.5
-    d_now = np.stack([(grid.cx - u) / grid.f_px, (grid.cy - v) / grid.f_px, np.ones_like(u)], -1)
-    directions = (d_now @ now.camera[:3, :3].T).reshape(-1, 3)
-    unit = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    points, valid, owner = _surface_points(scene, now, unit)
+    scene.set_pose(now)
+    hits = cast(scene, now.camera, u, v)  # float64 points: a static one re-projects onto its pixel centre
+    points, valid = hits.points, hits.valid
+    motion_of = {obj: i for i, motion in enumerate(m.motion) for obj in motion.objects}
+    owner = np.array([motion_of.get(s.id(), -1) for s in scene.scene.shapes()] + [-1])[hits.shape]  # -1: no hit
     moved = points.copy()
     for i, motion in enumerate(m.motion):
         on = valid & (owner == i)
@@ -108,7 +79,8 @@ def frame_truth(scene: MitsubaScene, t_s: float, dt_s: float) -> FrameTruth:
             a, b = now.objects[motion.objects[0]], later.objects[motion.objects[0]]
             step = b @ np.linalg.inv(a)
             moved[on] = points[on] @ step[:3, :3].T + step[:3, 3]
-    seen = np.where(valid[:, None], moved - later.camera[:3, 3], directions)
+    rays = directions(now.camera, grid.f_px, grid.cx, grid.cy, u, v).reshape(-1, 3)
+    seen = np.where(valid[:, None], moved - later.camera[:3, 3], rays)
     uv = image_points(later.camera, grid.f_px, grid.cx, grid.cy, seen).reshape(h, w, 2)
     flow = uv - np.stack([u, v], -1)
     depth = np.where(valid, (points - now.camera[:3, 3]) @ now.camera[:3, 2], 0.0).reshape(h, w)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gevsim.render.rays import PinholeGrid, focal_px, image_points, primary_rays, sensor_grid
+from gevsim.render.rays import PinholeGrid, directions, focal_px, image_points, primary_rays, sensor_grid
 from gevsim.render.rotation import Segment, edge_rect
 from gevsim.render.scene import MitsubaScene
 
@@ -81,8 +81,8 @@ def cast(scene: MitsubaScene, camera: np.ndarray, u: np.ndarray, v: np.ndarray) 
     ray = primary_rays(grid, mi.Vector2f(mi.Float(u), mi.Float(v)), near_clip_m=near)
     si = scene.scene.ray_intersect(ray)
     valid = np.array(si.is_valid(), dtype=bool).reshape(-1)
-    d = np.stack([(grid.cx - u) / grid.f_px, (grid.cy - v) / grid.f_px, np.ones_like(u)], -1) @ camera[:3, :3].T
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = directions(camera, grid.f_px, grid.cx, grid.cy, u, v)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)  # float64: a point re-projects onto its image point exactly
     distance = np.where(valid, np.array(si.t, dtype=np.float64).reshape(-1), 0.0) + near / (d @ camera[:3, 2])
     owner = dr.full(mi.Int32, -1, len(u))
     for i, shape in enumerate(scene.scene.shapes()):
