@@ -153,8 +153,11 @@ def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 10
 
 def _is_ours(path: Path) -> bool:
     """A picture `gevsim view` wrote (its Software text or comment names gevsim)."""
-    if path.suffix.lower() == ".mp4":
-        return MARK.encode() in path.read_bytes()[-65536:] or MARK.encode() in path.read_bytes()[:65536]
+    if path.suffix.lower() == ".mp4":  # the comment atom sits near one end of the file
+        with open(path, "rb") as fh:
+            head = fh.read(65536)
+            fh.seek(max(0, path.stat().st_size - 65536))
+            return MARK.encode() in head + fh.read()
     try:
         from PIL import Image
 
