@@ -89,7 +89,7 @@ def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: l
     if window_us < 1:
         raise ConfigError(f"the window must be at least 1 us, got {window_us}", key="--window-ms")
     with EventReader(path) as r:
-        names = list(r.streams) if streams is None else streams
+        names = sorted(r.streams, key=lambda s: s != "events") if streams is None else streams  # DVS first
         for s in names:
             if s not in r.streams:
                 raise ConfigError(f"no stream {s!r}{suggest(s, r.streams)}; streams: {', '.join(r.streams)}",
@@ -115,6 +115,9 @@ def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: l
             label = _labels(titles, shape[1], row.shape[1])
             pictures.append(np.concatenate([label, row, _time_bar(row.shape[1], a, b, total)], axis=0))
     return np.asarray(pictures), titles
+
+
+VIDEO_MIN_WIDTH = 640  # px: MP4 pictures are enlarged by whole pixels to at least this width (video_frames)
 
 
 def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,
@@ -147,8 +150,23 @@ def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 10
             frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=1000.0 / fps,
                            loop=0, comment=MARK.encode())
         else:
-            iio.imwrite(tmp, pictures, extension=".mp4", fps=fps, metadata={"comment": MARK})
+            frames, _ = video_frames(pictures)
+            iio.imwrite(tmp, frames, extension=".mp4", fps=fps, macro_block_size=1,
+                        output_params=["-metadata", f"comment={MARK}"])
     return out
+
+
+def video_frames(pictures: np.ndarray) -> tuple[np.ndarray, int]:
+    """The pictures as an H.264 encoder takes them without blurring single-pixel events: each picture
+    pixel repeated ``k`` x ``k`` times (the least ``k`` <= 8 making them VIDEO_MIN_WIDTH wide; 4:2:0
+    chroma then never mixes two pixels' colours), padded at the right and bottom to a multiple of 16
+    (the encoder's macroblock; it would otherwise rescale). Returns the frames and ``k``."""
+    n, h, w, _ = pictures.shape
+    k = int(min(8, max(1, -(-VIDEO_MIN_WIDTH // w))))
+    big = pictures.repeat(k, axis=1).repeat(k, axis=2)
+    frames = np.zeros((n, -(-h * k // 16) * 16, -(-w * k // 16) * 16, 3), np.uint8)
+    frames[:, :h * k, :w * k] = big
+    return frames, k
 
 
 def _is_ours(path: Path) -> bool:

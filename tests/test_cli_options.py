@@ -99,3 +99,29 @@ def test_frame_mode_log_linlog_is_recorded_and_config_mode_refuses_it(odd_frames
 def test_reconstruct_refuses_an_empty_method_list(capsys):
     assert cli.main(["reconstruct", "x.h5", "--method", ",", "--out", "o"]) == 2
     assert "no method" in capsys.readouterr().err
+
+
+def test_every_command_explains_itself_in_sentences_and_its_examples_parse():
+    """--help of every command: a description of whole sentences, every option explained, and examples
+    that the parser accepts as written (options spelled as they are today)."""
+    import argparse
+    import shlex
+
+    from gevsim.cli.help import COMMANDS
+    from gevsim.cli.parser import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert set(sub.choices) == set(COMMANDS)
+    for name, command in sub.choices.items():
+        text, examples = COMMANDS[name]
+        assert text.endswith(".") and text[0].isupper() and len(text.split(". ")) >= 1
+        help_text = command.format_help()
+        assert text.split()[0] in help_text and "examples:" in help_text
+        missing = [a.dest for a in command._actions if not a.help and not isinstance(a, argparse._HelpAction)]
+        assert not missing, f"gevsim {name}: options without help: {missing}"
+        for line in examples:
+            words = shlex.split(line)
+            assert words[:2] == ["gevsim", name]
+            parsed = parser.parse_args(words[1:])
+            assert parsed.command == name

@@ -7,7 +7,7 @@ import pytest
 
 from gevsim.cli import main
 from gevsim.io import EventReader
-from gevsim.view import LABEL_PX, SATURATE, render_windows
+from gevsim.view import LABEL_PX, SATURATE, render_windows, video_frames
 
 iio = pytest.importorskip("imageio.v3")
 
@@ -41,7 +41,25 @@ def test_cli_writes_png_and_gif_and_explains_mp4(good, tmp_path, capsys):
     mine = tmp_path / "holiday.png"
     iio.imwrite(mine, np.zeros((4, 4, 3), np.uint8))
     assert main(["view", str(good), "--out", str(mine)]) == 2  # never a picture it did not write
-    mp4 = main(["view", str(good), "--out", str(tmp_path / "v.mp4")])
-    err = capsys.readouterr().err
-    assert mp4 == 0 or "imageio-ffmpeg" in err
+    capsys.readouterr()
     assert main(["view", str(good), "--out", str(tmp_path / "v.png"), "--streams", "evnts"]) == 2
+
+
+def test_mp4_holds_every_window_as_the_gif_draws_it(good, tmp_path):
+    """MP4 through imageio-ffmpeg (the plot extra): one video frame per window, the same pictures as the
+    lossless GIF up to the codec's loss, and replaced only when it is gevsim's own video."""
+    pytest.importorskip("imageio_ffmpeg", reason="MP4 needs imageio-ffmpeg (plot extra)")
+    gif, mp4 = tmp_path / "v.gif", tmp_path / "v.mp4"
+    assert main(["view", str(good), "--out", str(gif), "--window-ms", "0.5"]) == 0
+    assert main(["view", str(good), "--out", str(mp4), "--window-ms", "0.5"]) == 0
+    exact = iio.imread(gif, index=None)[..., :3].astype(float)
+    video = iio.imread(mp4, index=None, extension=".mp4").astype(float)
+    frames, k = video_frames(exact.astype(np.uint8))
+    assert k > 1 and video.shape == frames.shape and frames.shape[1] % 16 == frames.shape[2] % 16 == 0
+    h, w = exact.shape[1:3]  # the picture sits top-left, each of its pixels a k x k block
+    centres = video[:, k // 2:h * k:k, k // 2:w * k:k]
+    assert np.median(np.abs(centres - exact)) <= 2 and np.abs(centres - exact).mean() < 6
+    assert main(["view", str(good), "--out", str(mp4), "--window-ms", "1"]) == 0  # its own video: replaced
+    other = tmp_path / "holiday.mp4"
+    other.write_bytes(b"\x00\x00\x00\x18ftypmp42" + bytes(64))
+    assert main(["view", str(good), "--out", str(other)]) == 2

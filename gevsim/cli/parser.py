@@ -12,6 +12,7 @@ from gevsim.cli._common import (
     _positive_int,
     _run_overrides,
 )
+from gevsim.cli.help import description
 
 DESCRIPTION = "Command line of gevsim, a physically based event-camera emulator."
 
@@ -29,8 +30,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="log gevsim's debug messages")
     _add_parser = sub.add_parser
 
-    def add_parser(*a, **kw):
-        return _add_parser(*a, parents=[common], **kw)
+    def add_parser(name, **kw):
+        return _add_parser(name, parents=[common], description=description(name),
+                           formatter_class=argparse.RawDescriptionHelpFormatter, **kw)
 
     sub.add_parser = add_parser  # type: ignore[method-assign]
 
@@ -47,8 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="average each frame over S seconds (default: instant)")
     r.add_argument("--plots", action="store_true", help="write contact_sheet.png and waveform.png (needs --frames)")
     r.add_argument("--cache", metavar="DIR", help="basis image cache (default $GEVSIM_CACHE or ~/.cache/gevsim)")
-    r.add_argument("--width", type=int)
-    r.add_argument("--height", type=int)
+    r.add_argument("--width", type=int, help="render width in pixels (overrides the scene's)")
+    r.add_argument("--height", type=int, help="render height in pixels (overrides the scene's)")
     r.add_argument("--spp", type=int, help="a fixed sample count (draft mode; replaces the scene's noise target)")
     r.add_argument("--noise-target", type=float, metavar="LN", dest="noise_target",
                    help="render until this standard error of ln radiance (at the scene's percentile) is reached")
@@ -57,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="noise-target mode: stop after about S seconds of rendering")
     r.add_argument("--denoise", action=argparse.BooleanOptionalAction, default=None,
                    help="denoise the group images with Intel Open Image Denoise (biased; see benchmarks/README.md)")
-    r.add_argument("--seed", type=_non_negative_int)
+    r.add_argument("--seed", type=_non_negative_int, help="seed of the renderer's samples (default: the scene's)")
     r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 

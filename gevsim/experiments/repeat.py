@@ -147,6 +147,9 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         saturated[name] = bus_limited(info.readout)
         if name == "run":
             stats, summary = summarize(folder / "run.h5"), info
+            if repeat == 0:
+                record_strip = event_strip(folder / "run.h5", Path(out) / "runs" / rid / STRIP_FILE,
+                                           periods.get(group), summary.duration_s)
         if name in FOLDED:
             folded[name] = {e: _fold(folder / f"{name}.h5", EMULATORS[e].stream, periods, (h, w),
                                      summary.duration_s) for e in study.base["emulators"]}
@@ -156,6 +159,8 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
               "event_probability": {e: stats[EMULATORS[e].stream].event_probability
                                     for e in study.base["emulators"]},
               "render": _render_quality(setup.render_quality), "metrics": {}}
+    if repeat == 0:
+        record["strip"] = record_strip
     for method in study.base["methods"]:
         if METHODS[method].needs_aps and not cfg.aps:  # the sensor has no APS: nothing to fuse
             record["metrics"][method] = {k: float("nan") for k in ("mse", "ssim", "psnr")}
@@ -187,6 +192,24 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     if not keep_files:
         shutil.rmtree(folder, ignore_errors=True)
     return record
+
+
+#: The picture of a run's events (repeat 0) beside its repeats: ``runs/<id>/events.png`` (``gevsim view``).
+STRIP_FILE = "events.png"
+
+
+def event_strip(run_file: Path, out: Path, period_s: float | None, duration_s: float) -> dict:
+    """Draw the last flicker period of a run (``period_s``; the last 8 ms for a steady lamp; at most the
+    whole run) as a
+    :func:`gevsim.view.view` strip of ``STRIP_ROWS`` windows into ``out``; returns where it lies
+    in time (``window_us``, ``start_us``), for the report's caption."""
+    from gevsim.view import STRIP_ROWS, view
+
+    span_us = round(min(period_s or 8e-3, duration_s) * 1e6)
+    window_us = max(1, span_us // STRIP_ROWS)
+    start_us = max(0, round(duration_s * 1e6) - STRIP_ROWS * window_us)
+    view(run_file, out, window_us=window_us, start_us=start_us)
+    return {"file": STRIP_FILE, "window_us": window_us, "start_us": start_us}
 
 
 #: A stream is bus-limited when its readout lost more than this share of the requested events (dropped by

@@ -281,7 +281,33 @@ METHOD_TEXT = (
     "against the flicker-free log irradiance.")
 
 
-def write_report(folder: Path, study: Study, rows: list[dict], made: list, maps_made: list) -> None:
+def event_strips(out: Path, study: Study, rows: list[dict]) -> list[tuple[str, str]]:
+    """(path relative to ``out``, caption) of the event strips of repeat 0
+    (:func:`gevsim.experiments.repeat.event_strip`), one per distinct (``[report] lines``, ``x``) value:
+    what each emulator made of the last flicker period, beside the ground truth."""
+    from gevsim.experiments.repeat import finished_repeat
+
+    keys = [k for k in (study.report.get("lines"), study_plots.x_axis(study)) if k]
+    seen, strips = set(), []
+    for row in rows:
+        which = tuple(row.get(k) for k in keys)
+        record = finished_repeat(out, row["id"], 0) or {}
+        strip = record.get("strip")
+        if which in seen or not strip or not (out / "runs" / row["id"] / strip["file"]).exists():
+            continue
+        seen.add(which)
+        period = f"one period of {row['flicker_group']} ({row['flicker_frequency_hz']:g} Hz)" \
+            if row.get("flicker_frequency_hz") else "the run's end (steady light)"
+        caption = (f"{_label(row, study)}, seed {row['seeds'][0]}: events over {period}, in windows of "
+                   f"{strip['window_us'] / 1000:g} ms from t = {strip['start_us'] / 1000:g} ms (one row each). "
+                   "DVS/CSDVS: ON blue, OFF red; gradient: X steps in red, Y in green, up brighter and down darker "
+                   "than grey; right: the ground-truth log irradiance.")
+        strips.append((f"runs/{row['id']}/{strip['file']}", caption))
+    return strips
+
+
+def write_report(folder: Path, study: Study, rows: list[dict], made: list, maps_made: list,
+                 strips: list | None = None) -> None:
     n_rep = rows[0]["repeats"]
     parts = [f"# Study: {study.name}", "", study.description, ""]
     head = [m for m in made if m[0] == "headline.png"]
@@ -294,6 +320,10 @@ def write_report(folder: Path, study: Study, rows: list[dict], made: list, maps_
     parts += ["", METHOD_TEXT, ""]
     for name, caption in made:
         if name != "headline.png":
+            parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    if strips:
+        parts += ["## What the sensors see", ""]
+        for name, caption in strips:
             parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
     if maps_made:
         parts += ["## Where flicker events come from", ""]
@@ -335,7 +365,7 @@ def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path
                             study_plots.quality(stage, study, rows, plt), study_plots.spectrum(stage, study, rows, plt),
                             study_plots.pareto(stage, rows, plt)) if m]
         maps_made = [study_plots.flicker_maps(stage, study, row, maps[row["id"]], k, plt) for k, row in enumerate(rows)]
-        write_report(stage, study, rows, made, maps_made)
+        write_report(stage, study, rows, made, maps_made, event_strips(out, study, rows))
         (stage / "config.toml").write_text(study.text)
         for old in out.glob("maps_*.png"):  # an earlier report's panels (the study may have fewer runs now)
             old.unlink()

@@ -15,6 +15,9 @@ from gevsim.experiments import repeat as repeat_mod
 from gevsim.experiments.executors import make_executor
 from gevsim.experiments.study import load_study
 from gevsim.experiments.study_run import run_study
+from gevsim.view import LABEL_PX, STRIP_ROWS
+
+iio = pytest.importorskip("imageio.v3")
 
 DATA = Path(__file__).parents[1] / "data"
 
@@ -71,6 +74,15 @@ def test_study_outputs_and_counterfactual_physics(tmp_path, capsys):
     assert images and all((out / name).is_file() for name in images)
     assert (out / "config.toml").read_text() == cfg.read_text()
     assert not list(out.glob(".outputs-partial*"))
+    # The report shows what the sensors saw: a strip per run over the last flicker period. The steady
+    # lamp and the ideal pixel make no events (DVS panel all background); the flicker makes DVS events.
+    strips = [name for name in images if name.endswith("/events.png")]
+    assert [s.split("/")[1] for s in strips] == [r["id"] for r in data] and "## What the sensors see" in report
+    dc, sine = (iio.imread(out / name)[..., :3] for name in strips)
+    assert dc.shape == sine.shape and dc.shape[0] % STRIP_ROWS == 0
+    rows_px = dc.shape[0] // STRIP_ROWS
+    dvs = [img.reshape(STRIP_ROWS, rows_px, -1, 3)[:, LABEL_PX:LABEL_PX + 18, :24] for img in (dc, sine)]
+    assert (dvs[0] == 24).all() and (dvs[1] != 24).any(axis=-1).mean() > 0.5
 
 
 def test_rerun_resumes_without_recomputing(tmp_path, monkeypatch):

@@ -86,3 +86,20 @@ def test_a_reader_taking_the_first_event_stream_gets_the_dvs(tmp_path):
         parts.append(batch.numpy())
     same(np.concatenate(parts), dvs)
     assert read_aedat4(tmp_path / "run.aedat4")["events_csdvs"].shape == (1000,)
+
+
+def test_tonics_own_reader_returns_the_dvs_stream(tmp_path):
+    """tonic.io.read_aedat4 (through the ``aedat`` package) takes the event stream of lowest id: with a
+    center-surround and a gradient stream beside it, that must be the DVS stream, every event equal."""
+    pytest.importorskip("aedat", reason="tonic's AEDAT4 reader needs the aedat package (aedat4 extra)")
+    tonic_io = pytest.importorskip("tonic.io")
+    dvs, cs = events(3000, BRIGHTNESS_DTYPE, 5), events(1000, BRIGHTNESS_DTYPE, 6)
+    grad = events(2000, GRADIENT_DTYPE, 7)
+    run = write_run(tmp_path / "run.h5", csdvs_events=cs, gradient_events=grad, events=dvs)
+    export_aedat4(run, tmp_path / "run.aedat4")
+    got = tonic_io.read_aedat4(str(tmp_path / "run.aedat4"))
+    assert len(got) == len(dvs)
+    np.testing.assert_array_equal(got["t"], dvs["t"])
+    np.testing.assert_array_equal(got["x"], dvs["x"])
+    np.testing.assert_array_equal(got["y"], dvs["y"])
+    np.testing.assert_array_equal(got["on"].astype(bool), dvs["p"] > 0)
