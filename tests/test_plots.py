@@ -38,3 +38,17 @@ def test_the_contact_sheet_has_a_scale_in_lux(tmp_path):
     labels = [t.get_text() for t in fig.axes[-1].get_yticklabels()]
     assert labels[0] == f"{683.0 * np.exp(-6.0):.3g}" and labels[-1] == "683"  # grey 0 and 1 in lux
     plt.close(fig)
+
+
+def test_quality_plot_gives_each_method_one_colour_and_each_series_one_line_style():
+    """Issue 26 item 8: 16 curves (4 methods x 4 series) once cycled through 10 colours, so two methods
+    shared a colour; now the colour names the method in every series and the line style the series."""
+    from gevsim.experiments.study_plots import method_styles
+
+    methods = ["dct", "dct_rc", "direct", "complementary"]
+    groups = [f"scene={s}, hysteresis_ln={h}" for s in ("office", "street") for h in (0.0, 0.02)]
+    colours, styles = method_styles(methods, groups)
+    assert len(set(colours.values())) == len(methods)
+    assert len(set(styles.values())) == len(groups)
+    many = [f"g{k}" for k in range(12)]
+    assert len(set(method_styles(methods, many)[1].values())) == 12

@@ -239,6 +239,18 @@ def rates(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, 
                                 "no subtraction); dotted: the render-noise floor of the same stream.")
 
 
+#: Line styles and markers that tell series apart where colour names the method.
+SERIES_STYLES = [(("-", "--", ":", "-.")[k % 4], ("o", "s", "^", "D", "v", "P")[k % 6]) for k in range(12)]
+
+
+def method_styles(methods: Sequence[str], groups: Sequence[str]) -> tuple[dict[str, str], dict[str, tuple[str, str]]]:
+    """A colour per method (matplotlib's ten cycle colours; gevsim has fewer methods) and a (line style,
+    marker) per series (12 distinct pairs, then repeated)."""
+    colours = {m: f"C{k % 10}" for k, m in enumerate(methods)}
+    styles = {g: SERIES_STYLES[k % len(SERIES_STYLES)] for k, g in enumerate(groups)}
+    return colours, styles
+
+
 def quality(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, str] | None:
     methods = row_methods(rows)
     if not methods:
@@ -246,17 +258,28 @@ def quality(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str
     x = x_axis(study)
     _, label = series_labels(study)
     groups = list(dict.fromkeys(label(r) for r in rows))
-    fig, ax = plt.subplots(figsize=(8.5, 4.2))
+    fig, ax = plt.subplots(figsize=(9.5, 4.4))
     numeric, xs, labels = True, [], []
+    colours, styles = method_styles(methods, groups)
     for group in groups:
         for m in methods:
             sel, xs, numeric, labels = _xy([r for r in rows if label(r) == group], x)
             if not any(np.isfinite(r[f"{m}_ssim"]) for r in sel):
                 continue
-            errorbars(ax, xs, sel, f"{m}_ssim", label=f"{m} ({group})" if len(groups) > 1 else m, log=False)
+            errorbars(ax, xs, sel, f"{m}_ssim", color=colours[m], linestyle=styles[group][0],
+                      marker=styles[group][1], log=False)
     ax.set_ylabel("SSIM vs flicker-free reference")
     _finish(ax, axis_label(x), numeric, xs, labels, _log_x(rows, x))
-    ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
+    # Two legends beside the axes: colour = method, line and marker = series (the other swept axes).
+    from matplotlib.lines import Line2D
+
+    first = ax.legend([Line2D([], [], color=colours[m], lw=2) for m in methods], methods, title="method",
+                      fontsize=8, title_fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
+    if len(groups) > 1:
+        ax.add_artist(first)
+        ax.legend([Line2D([], [], color="0.3", linestyle=styles[g][0], marker=styles[g][1]) for g in groups], groups,
+                  title="series", fontsize=7, title_fontsize=8, loc="lower left", bbox_to_anchor=(1.02, 0.0),
+                  borderaxespad=0)
     fig.tight_layout()
     from gevsim.plots import save_figure
 
@@ -276,7 +299,8 @@ def spectrum(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[st
     f0 = row.get("flicker_frequency_hz")
     if isinstance(f0, (int, float)):
         for k in range(1, 6):
-            ax.axvline(k * f0, color="0.6", ls=":", lw=1)
+            ax.axvline(k * f0, color="0.6", ls=":", lw=1, label=f"flicker harmonics (k x {f0:g} Hz)" if k == 1 else None)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("DVS event-rate amplitude (events/s)")
     ax.set_title(f"Event-rate spectrum (repeat 0), {', '.join(f'{k}={row[k]}' for k in study.axes if k in row)}",
