@@ -10,6 +10,7 @@ error, rates and their ratio to brute force.
     python benchmarks/pose_reuse.py --scene scenes/office_pan.toml --size 64x48
     python benchmarks/pose_reuse.py --scene scenes/office_pan.toml --size 346x260 --no-brute --poses 3
     python benchmarks/pose_reuse.py --scene scenes/office_dolly.toml --reuse parallax --subs 3
+    python benchmarks/pose_reuse.py --scene scenes/office_dolly.toml --reuse parallax --subs 3 --sampling adaptive
 
 ``--no-brute --poses N`` times N brute-force poses only (their mean time per pose
 scales to the whole sequence) where the full brute force is unaffordable.
@@ -32,8 +33,8 @@ from gevsim.render.manifest import load
 from gevsim.render.scene import MitsubaScene
 
 
-def basis_for(manifest, reuse: str, cache: Path, sub: int | None = None, times=None):
-    r = dataclasses.replace(manifest.render, reuse=reuse)
+def basis_for(manifest, reuse: str, cache: Path, sub: int | None = None, times=None, sampling: str = "uniform"):
+    r = dataclasses.replace(manifest.render, reuse=reuse, sampling=sampling)
     scene = MitsubaScene(dataclasses.replace(manifest, render=r))
     old = rotation.SUB
     rotation.SUB = sub or old
@@ -75,6 +76,8 @@ def main() -> None:
     ap.add_argument("--no-brute", action="store_true", help="time only --poses brute-force poses")
     ap.add_argument("--poses", type=int, default=3)
     ap.add_argument("--no-events", action="store_true")
+    ap.add_argument("--sampling", default="uniform", choices=("uniform", "adaptive"),
+                    help="[render] sampling of the reuse method (brute force stays uniform: today's renderer)")
     args = ap.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
     m = load(args.scene)
@@ -97,17 +100,19 @@ def main() -> None:
                 scene = MitsubaScene(m)
                 all_times = scene.pose_times()
                 times = all_times[np.linspace(0, len(all_times) - 1, args.poses).astype(int)]
-            basis, seconds = basis_for(m, reuse, cache, sub, times)
+            sampling = "uniform" if reuse == "none" else args.sampling
+            basis, seconds = basis_for(m, reuse, cache, sub, times, sampling)
             q = basis.noise_summary()
             if times is not None:
                 seconds *= len(all_times) / len(times)
-            r = None if args.no_events or times is not None else rates(args.scene, (w, h), cache, reuse, sub, tmp,
-                                                                        overrides)
+            r = None if args.no_events or times is not None else rates(
+                args.scene, (w, h), cache, reuse, sub, tmp, overrides + f'sampling = "{sampling}"\n')
             rendered = int((basis.render_s > 0).sum())
             results[(reuse, sub)] = (seconds, len(basis.times_s), rendered, q, r, times is not None)
         brute = results[("none", None)]
         for (reuse, sub), (seconds, poses, rendered, q, r, scaled) in results.items():
-            label = f"{reuse}" + (f" (sub {sub})" if sub else "") + (" [scaled]" if scaled else "")
+            label = f"{reuse}" + (f" (sub {sub})" if sub else "") + (f", {args.sampling}" if reuse != "none" else "") \
+                + (" [scaled]" if scaled else "")
             ratio = brute[0] / seconds
             row = [label, f"{seconds:.1f}", f"{ratio:.1f}x", f"{rendered} / {poses - rendered}",
                    f"{q['spp_max']}", f"{q['se_ln']['p99']:.4f}"]

@@ -54,6 +54,12 @@ log = logging.getLogger(__name__)
 
 #: Paths traced per batch at most (memory of one JIT wavefront, ~100 B a path per group).
 MAX_BATCH_PATHS = 2**22
+#: ``sampling = "adaptive"``: after MIN_BATCHES, a pixel gets further batches only while its error is above
+#: this fraction of the target; the stop rule (the percentile over pixels) is unchanged. At 0.5 no pixel's
+#: error rises above half the target (or what uniform sampling leaves it at, where that is more), and the
+#: pixels that decide the percentile get every batch, as under uniform sampling. Assumed; its effect on
+#: event rates is measured in benchmarks/README.md (Moving scenes).
+ADAPTIVE_STOP_FRACTION = 0.5
 #: Samples per pixel of the first batches in noise-target mode.
 FIRST_BATCH_SPP = 4
 #: Samples per pixel of the denoiser's albedo and normal guides, and the batch index of their seed.
@@ -66,7 +72,15 @@ def quality_request(settings: RenderSettings, mixtures: np.ndarray, target_ln: f
     return {"spp": settings.spp, "target_ln": target_ln, "percentile": settings.noise_percentile,
             "max_spp": settings.max_spp, "mixtures": np.asarray(mixtures, float), "floor_rel": settings.noise_floor_rel,
             "metric": settings.noise_metric, "time_budget_s": settings.time_budget_s,
-            "denoise": settings.denoise}
+            "denoise": settings.denoise, "sampling": settings.sampling}
+
+
+def active_cells(active: np.ndarray, sub: int) -> np.ndarray:
+    """Flat indices (row-major) of the ``sub`` x ``sub`` cells of the pixels where ``active`` (H, W) holds."""
+    rows, cols = np.nonzero(active)
+    dy, dx = np.divmod(np.arange(sub * sub), sub)
+    width = active.shape[1] * sub
+    return (((rows[:, None] * sub + dy) * width + cols[:, None] * sub + dx).ravel()).astype(np.int64)
 
 
 def batch_seed(seed: int, batch: int) -> int:
@@ -102,10 +116,30 @@ def render_pose(
     start = time.perf_counter()
 
     on_grid = {} if grid is None else {"grid": grid} if pixels is None else {"grid": grid, "pixels": pixels}
+    # Per-pixel adaptive sampling: after MIN_BATCHES, only pixels whose error is above
+    # ADAPTIVE_STOP_FRACTION x the target get further batches (the stop rule is unchanged).
+    adaptive = request.get("sampling") == "adaptive" and target is not None and not request.get("denoise") \
+        and (one_pass if one_pass is not None else scene.one_pass)
+    active: np.ndarray | None = None  # the accumulator's pixels still sampled; None: all
+    full_shape = (r.height, r.width) if grid is None else (1, len(pixels)) if pixels is not None \
+        else (grid.height, grid.width)  # what one batch covers, in cells
 
     def batch(spp: int) -> None:  # samples per cell
-        images = scene.render_groups(spp=spp, seed=batch_seed(r.seed, acc.batches), one_pass=one_pass, **on_grid)
-        acc.add(images, luminance(images), scene.sample_count(spp) * per)
+        seed = batch_seed(r.seed, acc.batches)
+        if active is None:
+            images = scene.render_groups(spp=spp, seed=seed, one_pass=one_pass, **on_grid)
+            acc.add(images, luminance(images), scene.sample_count(spp) * per)
+            return
+        if pixels is None:  # the active pixels' cells, as flat indices of the grid (or film)
+            where = render = active_cells(active, 1 if grid is None else grid.sub)
+        else:  # the active cells among those asked for
+            where = np.flatnonzero(active.ravel())
+            render = np.asarray(pixels)[where]
+        part = scene.render_groups(spp=spp, seed=seed, one_pass=one_pass, **{**on_grid, "pixels": render})
+        full = np.zeros((part.shape[0], full_shape[0] * full_shape[1], part.shape[-1]), np.float32)
+        full[:, where] = part[:, 0]
+        full = full.reshape(part.shape[0], *full_shape, part.shape[-1])
+        acc.add(full, luminance(full), scene.sample_count(spp) * per, mask=active)
 
     if target is None:
         size, count = fixed_batches(-(-request["spp"] // per), r.sampler, cap=cap)
@@ -118,14 +152,21 @@ def render_pose(
     else:
         stopped = None
         while stopped is None:
-            size = next_batch_spp(acc.spp // per, first=max(1, FIRST_BATCH_SPP // per), cap=cap)
-            size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - acc.spp) // (2 * per))))
+            have = acc.spp if active is None else int(acc.pixel_spp()[active].min())
+            if active is not None:
+                cap = max(1, MAX_BATCH_PATHS // (int(active.sum()) * per))
+            size = next_batch_spp(have // per, first=max(1, FIRST_BATCH_SPP // per), cap=cap)
+            size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - have) // (2 * per))))
             for _ in range(2):
                 batch(size)
             elapsed = time.perf_counter() - start
-            if acc.batches >= MIN_BATCHES and np.percentile(acc.se_ln(), request["percentile"]) <= target:
+            se = acc.se_ln() if acc.batches >= MIN_BATCHES else None
+            if adaptive and se is not None:
+                active = se > ADAPTIVE_STOP_FRACTION * target
+            have = int(acc.pixel_spp()[active].min()) if active is not None and active.any() else acc.spp
+            if se is not None and np.percentile(se, request["percentile"]) <= target:
                 stopped = "target"
-            elif acc.spp + 2 * exact_count(r.sampler, 1) * per > request["max_spp"]:
+            elif have + 2 * exact_count(r.sampler, 1) * per > request["max_spp"]:
                 stopped = "max_spp"
             elif budget_s is not None and elapsed * (1.0 + 2.0 * size * per / acc.spp) > budget_s:
                 stopped = "time_budget"

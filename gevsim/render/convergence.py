@@ -150,16 +150,20 @@ class BatchAccumulator:
         self.cells = integer(cells, "cells", low=1)
         self.metric = metric
         self.floor_rel = float(floor_rel)
-        self.spp = 0
-        self.batches = 0
-        self._half_spp = [0, 0]
+        self.spp = 0  # the most samples any pixel has
+        self.batches = 0  # the most batches any pixel has
+        self._n: np.ndarray | None = None  # per pixel: samples, batches, and samples in each half, (H, W)
+        self._nb: np.ndarray | None = None
+        self._half_n: np.ndarray | None = None  # (2, H, W)
         self._halves: list[np.ndarray] = []  # sum of n_b * G_b per half, (K, H, W, C) float64
         self._p: np.ndarray | None = None  # sum n_b Y_b, (M + 1, H, W)
         self._q: np.ndarray | None = None  # sum n_b Y_b^2
         self._c: np.ndarray | None = None  # sum n_b Y_b Y_ref,b
 
-    def add(self, images: np.ndarray, luminance: np.ndarray, spp: int) -> None:
-        """Add a batch: ``images`` (K, H, W, C) radiance, ``luminance`` (K, H, W), from ``spp`` samples."""
+    def add(self, images: np.ndarray, luminance: np.ndarray, spp: int, mask: np.ndarray | None = None) -> None:
+        """Add a batch: ``images`` (K, H, W, C) radiance, ``luminance`` (K, H, W), from ``spp`` samples.
+        ``mask`` (H, W pixels, bool): only these pixels were rendered (per-pixel adaptive sampling); the
+        images must be zero elsewhere. None: every pixel."""
         images = np.asarray(images)
         lum = np.asarray(luminance, float)
         k = self.mixtures.shape[1]
@@ -173,49 +177,81 @@ class BatchAccumulator:
                 raise ValueError(f"BatchAccumulator.add: {w}x{h} cells are not whole pixels of {c}x{c} cells")
             lum = lum.reshape(kk, h // c, c, w // c, c).mean(axis=(2, 4))
         y = np.tensordot(self.mixtures, lum, axes=1)  # (M + 1, H, W) pixels
-        half = 0 if self._half_spp[0] <= self._half_spp[1] else 1
         weighted = images.astype(np.float64) * spp
         if self._p is None or self._q is None or self._c is None:
             self._p, self._q, self._c = spp * y, spp * y * y, spp * y * y[-1]
             self._halves = [np.zeros_like(weighted), np.zeros_like(weighted)]
+            self._n, self._nb = np.zeros(y.shape[1:]), np.zeros(y.shape[1:], np.int64)
+            self._half_n = np.zeros((2, *y.shape[1:]))
         else:
             self._p += spp * y
             self._q += spp * y * y
             self._c += spp * y * y[-1]
-        self._halves[half] += weighted
-        self._half_spp[half] += spp
-        self.spp += spp
-        self.batches += 1
+        assert self._n is not None and self._nb is not None and self._half_n is not None
+        on = np.ones(y.shape[1:], bool) if mask is None else np.asarray(mask, bool)
+        if on.shape != y.shape[1:]:
+            raise ValueError(f"BatchAccumulator.add: mask must be {y.shape[1:]} pixels, got {on.shape}")
+        second = self._half_n[0] > self._half_n[1]  # each pixel's batch goes to its half with fewer samples
+        if mask is None and (second == second.flat[0]).all():
+            self._halves[int(second.flat[0])] += weighted
+        else:
+            cell = self._per_cell(second)
+            self._halves[0] += np.where(cell, 0.0, weighted)
+            self._halves[1] += np.where(cell, weighted, 0.0)
+        self._half_n[0] += np.where(on & ~second, spp, 0)
+        self._half_n[1] += np.where(on & second, spp, 0)
+        self._n += np.where(on, spp, 0)
+        self._nb += on
+        self.spp = int(self._n.max())
+        self.batches = int(self._nb.max())
+
+    def pixel_spp(self) -> np.ndarray:
+        """(H, W): the samples each pixel has (they differ under per-pixel adaptive sampling)."""
+        return np.zeros((0, 0)) if self._n is None else self._n.copy()
+
+    def _per_cell(self, a: np.ndarray) -> np.ndarray:
+        """A per-pixel (H, W) array as (1, H cells, W cells, 1), to divide (K, H, W, C) cell arrays."""
+        return np.repeat(np.repeat(a, self.cells, axis=0), self.cells, axis=1)[None, ..., None]
 
     def mean(self) -> np.ndarray:
         """(K, H, W, C) float32: the estimate from every sample."""
-        return ((self._halves[0] + self._halves[1]) / self.spp).astype(np.float32)
+        assert self._n is not None
+        n = self.spp if (self._n == self.spp).all() else self._per_cell(np.maximum(self._n, 1))
+        return ((self._halves[0] + self._halves[1]) / n).astype(np.float32)
 
     def noise(self) -> np.ndarray:
         """(K, H, W, C) float32: half the difference of the two halves' means.
 
-        It has (in expectation) the variance of :meth:`mean`'s error when the
-        halves hold equal sample counts; with one half empty it is zero.
+        It has (in expectation) the variance of :meth:`mean`'s error where the
+        halves hold equal sample counts; where one half is empty it is zero.
         """
-        n0, n1 = self._half_spp
-        if n0 == 0 or n1 == 0:
-            return np.zeros_like(self.mean())
+        assert self._half_n is not None
         h0, h1 = self.halves()
-        return 0.5 * (h0 - h1)
+        both = (self._half_n[0] > 0) & (self._half_n[1] > 0)
+        if both.all():
+            return 0.5 * (h0 - h1)
+        return np.where(self._per_cell(both), 0.5 * (h0 - h1), 0.0).astype(np.float32)
 
     def halves(self) -> tuple[np.ndarray, np.ndarray]:
         """The two halves' means, (K, H, W, C) float32 each: independent estimates."""
-        (h0, h1), (n0, n1) = self._halves, self._half_spp
-        return (h0 / max(n0, 1)).astype(np.float32), (h1 / max(n1, 1)).astype(np.float32)
+        assert self._half_n is not None
+        (h0, h1) = self._halves
+        n0, n1 = (np.maximum(n, 1) for n in self._half_n)
+        if (n0 == n0.flat[0]).all() and (n1 == n1.flat[0]).all():
+            return (h0 / n0.flat[0]).astype(np.float32), (h1 / n1.flat[0]).astype(np.float32)
+        return (h0 / self._per_cell(n0)).astype(np.float32), (h1 / self._per_cell(n1)).astype(np.float32)
 
     def se_ln(self, metric: str | None = None) -> np.ndarray:
         """(H, W): the largest standard error over the mixtures, of ``metric`` (default: the
         accumulator's), in ln units; inf before 2 batches."""
         metric = self.metric if metric is None else metric
         p, q, c = self._p, self._q, self._c
-        if self.batches < 2 or p is None or q is None or c is None:
+        if self.batches < 2 or p is None or q is None or c is None or self._n is None or self._nb is None:
             return np.full(p.shape[1:] if p is not None else (0, 0), np.inf)
-        n, dof = float(self.spp), self.batches - 1
+        if (self._nb == self.batches).all() and (self._n == self.spp).all():
+            n, dof = float(self.spp), self.batches - 1
+        else:  # per pixel (adaptive sampling); a pixel with fewer than 2 batches has an infinite error
+            n, dof = self._n, np.where(self._nb >= 2, self._nb - 1, np.nan)
         mean = p / n
         var = np.maximum(q - n * mean * mean, 0.0) / dof  # per-sample variance, (M + 1, H, W)
         scale = np.abs(mean) + self.floor_rel * mean.reshape(len(mean), -1).mean(axis=1)[:, None, None]
@@ -225,7 +261,8 @@ class BatchAccumulator:
         else:
             cov = (c - n * mean * mean[-1]) / dof
             rel_var = var / scale**2 + var[-1] / scale[-1] ** 2 - 2.0 * cov / (scale * scale[-1])
-        return np.sqrt(np.maximum(rel_var, 0.0) / n).max(axis=0)
+        se = np.sqrt(np.maximum(rel_var, 0.0) / n).max(axis=0)
+        return se if np.isscalar(dof) else np.where(np.isnan(dof), np.inf, se)
 
     def percentiles(self, percentile: float, *, se: np.ndarray | None = None) -> dict:
         """Percentiles of the error map ``se`` (default: :meth:`se_ln`), and the other metric's at ``percentile``."""

@@ -252,10 +252,14 @@ def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -
     if todo.size:
         scene.set_pose(pose)
         grid = PinholeGrid(pose.camera, focal_px(m.fov_deg, w), w / 2, h / 2, 0.0, 0.0, w * s, h * s, s)
-        # The window's density of samples, in 4 batches (a noise sample and 3 degrees of freedom for the
-        # reported error; the default 8 or more cost ~70 ms of tracing each for a few thousand cells).
-        fixed = {**request, "spp": int(report["spp"]), "target_ln": None, "batches": 4}
-        sub_mean, sub_err, sub_se, _ = basis.render_pose(scene, fixed, grid=grid, pixels=todo)
+        if request.get("sampling") == "adaptive" and request["target_ln"] is not None:
+            # Each cell to s x the target (a pixel of s^2 such cells meets it), per cell adaptively.
+            ask = {**request, "target_ln": request["target_ln"] * s}
+        else:
+            # The window's density of samples, in 4 batches (a noise sample and 3 degrees of freedom for the
+            # reported error; the default 8 or more cost ~70 ms of tracing each for a few thousand cells).
+            ask = {**request, "spp": int(report["spp"]), "target_ln": None, "batches": 4}
+        sub_mean, sub_err, sub_se, _ = basis.render_pose(scene, ask, grid=grid, pixels=todo)
         rows, cols = np.divmod(todo, w * s)
         cells[:, rows, cols], cell_noise[:, rows, cols] = sub_mean[:, 0], sub_err[:, 0]
         var[rows, cols] = np.square(sub_se[0].astype(np.float64))

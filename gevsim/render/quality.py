@@ -19,7 +19,7 @@ from gevsim.resources import MAX_SPP
 
 #: The keys of the noise-target mode (:class:`RenderSettings`).
 QUALITY_KEYS = ("noise_target_ln", "noise_percentile", "max_spp", "time_budget_s", "sampler", "noise_floor_rel",
-                "noise_metric", "denoise", "reuse")
+                "noise_metric", "denoise", "reuse", "sampling")
 #: Every ``[render]`` key of a scene manifest.
 RENDER_KEYS = ("width", "height", "spp", "seed", "flavour", "max_depth", "max_px_per_pose") + QUALITY_KEYS
 #: ``[render]`` keys that emulation, study and dataset configs may override.
@@ -30,6 +30,10 @@ SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler
 #: renders every pose alone; ``"rotation"`` resamples a camera turning about a fixed centre from one wider
 #: render (:mod:`gevsim.render.rotation`); ``"auto"`` takes the first that applies.
 REUSE = ("auto", "none", "rotation", "parallax")
+#: How a noise-target render spends samples (``[render] sampling``): ``"uniform"``, every pixel alike until
+#: the stop rule holds; ``"adaptive"``, after the first batches only pixels whose error is above
+#: :data:`gevsim.render.basis.ADAPTIVE_STOP_FRACTION` x the target (Manabe et al., ICCP 2024, per-pixel tests).
+SAMPLING = ("uniform", "adaptive")
 #: ``noise_target_ln = "auto"``: this fraction of the smallest event threshold. Measured on the office
 #: (128x96, ideal sensor, benchmarks/flicker_convergence.py): at a p99 flicker-metric error of 0.4 x 0.05 ln
 #: (~9000 spp) the flicker-induced gradient rate is +3.7 % and +8.3 % (two seeds) above a 65536-spp reference,
@@ -48,6 +52,7 @@ __all__ = [
     "RENDER_KEYS",
     "REUSE",
     "SAMPLERS",
+    "SAMPLING",
     "RenderSettings",
     "check_render_overrides",
     "quality_settings",
@@ -75,7 +80,8 @@ class RenderSettings:
     (``"absolute"``). ``denoise = true`` passes the finished group images
     through Intel Open Image Denoise (:mod:`gevsim.render.denoise`): biased,
     off by default; its bias is measured in ``benchmarks/README.md``.
-    ``reuse`` chooses how the poses of a moving scene are rendered (:data:`REUSE`).
+    ``reuse`` chooses how the poses of a moving scene are rendered (:data:`REUSE`), ``sampling``
+    how a noise-target render spends its samples over pixels (:data:`SAMPLING`).
     """
 
     width: int = 346
@@ -94,6 +100,7 @@ class RenderSettings:
     noise_metric: str = "flicker"
     denoise: bool = False
     reuse: str = "auto"
+    sampling: str = "uniform"
 
     @property
     def targeted(self) -> bool:
@@ -178,7 +185,7 @@ def quality_settings(table: dict, r: TomlReader, where: str) -> dict:
             r.fail(f"{where}.denoise", f"expected true or false, got {table['denoise']!r}")
         out["denoise"] = table["denoise"]
     for key, what, options in (("noise_metric", "noise metric", NOISE_METRICS), ("sampler", "sampler", SAMPLERS),
-                               ("reuse", "reuse method", REUSE)):
+                               ("reuse", "reuse method", REUSE), ("sampling", "sampling", SAMPLING)):
         if key in table:
             value = table[key]
             if value not in options:

@@ -134,33 +134,20 @@ def edge_rect(c: np.ndarray) -> np.ndarray:
                      0.5 * (c[:-1, 1:, 0] + c[1:, 1:, 0]), 0.5 * (c[1:, :-1, 1] + c[1:, 1:, 1])])
 
 
-def _overlaps(lo: np.ndarray, hi: np.ndarray, size: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per cell offset: (cell index, length of ``[lo, hi]`` inside that cell) along one axis."""
-    first = np.floor(lo).astype(np.int64)
-    span = int(np.ceil((hi - first).max()))
-    out = []
-    for a in range(span):
-        cell = first + a
-        length = np.clip(np.minimum(hi, cell + 1) - np.maximum(lo, cell), 0.0, None)
-        out.append((np.clip(cell, 0, size - 1), length))
-    return out
-
-
 def box_resample(cells: np.ndarray, rect: np.ndarray, *, power: int = 1) -> np.ndarray:
     """(K, H, W, C) float32: the mean of the piecewise-constant image ``cells`` (K, Hc, Wc, C) over each
     rectangle ``rect`` (4, H, W; x0, y0, x1, y1 in cell units, :func:`footprints`): a sum over the cells
     each rectangle overlaps, weighted by the overlap's share of the rectangle's area (exact, and never
     negative for a non-negative image). ``power = 2`` sums with the squared weights instead: the
-    variance of that mean when ``cells`` holds independent cells' variances."""
-    x0, y0, x1, y1 = rect
-    area = (x1 - x0) * (y1 - y0)
+    variance of that mean when ``cells`` holds independent cells' variances. A rectangle's part outside
+    the grid takes the nearest edge cell."""
+    from gevsim.render._boxfilter import box_sums
+
     k, hc, wc, c = cells.shape
-    flat = np.ascontiguousarray(np.moveaxis(cells, 0, 2).reshape(hc, wc, k * c))  # one gather serves K x C values
-    total = np.zeros((*x0.shape, k * c))
-    for iy, wy in _overlaps(y0, y1, hc):
-        for ix, wx in _overlaps(x0, x1, wc):
-            total += ((wy * wx / area) ** power)[..., None] * flat[iy, ix]
-    return np.moveaxis(total.reshape(*x0.shape, k, c), 2, 0).astype(np.float32)
+    flat = np.ascontiguousarray(np.moveaxis(cells, 0, 2).reshape(hc, wc, k * c))  # one pass serves K x C values
+    x0, y0, x1, y1 = (np.ascontiguousarray(a, dtype=np.float64).ravel() for a in rect)
+    total = box_sums(flat, x0, y0, x1, y1, power)
+    return np.moveaxis(total.reshape(*rect.shape[1:], k, c), 2, 0).astype(np.float32)
 
 
 def pixel_error(se_map: np.ndarray, grid: PinholeGrid, rect: np.ndarray) -> np.ndarray:

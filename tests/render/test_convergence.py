@@ -91,12 +91,16 @@ class FakeScene:
     def sample_count(self, spp):
         return spp
 
-    def render_groups(self, *, spp, seed, one_pass=None):
+    one_pass = True
+
+    def render_groups(self, *, spp, seed, one_pass=None, pixels=None):
         self.one_pass_seen.add(one_pass)
         time.sleep(self.delay_s)
         mu = np.array([1.0, 3.0])[:, None, None, None]
-        noise = self.rng.standard_normal((2, 10, 20, 1)) * self.sigma / np.sqrt(spp)
-        return np.repeat(mu + noise, 3, axis=-1).astype(np.float32)
+        sigma = np.broadcast_to(np.asarray(self.sigma, float), (10, 20))[None, ..., None]
+        noise = self.rng.standard_normal((2, 10, 20, 1)) * sigma / np.sqrt(spp)
+        images = np.repeat(mu + noise, 3, axis=-1).astype(np.float32)
+        return images if pixels is None else images.reshape(2, 1, -1, 3)[:, :, pixels]
 
 
 def test_stop_rule_stops_near_the_predicted_sample_count():
@@ -110,6 +114,46 @@ def test_stop_rule_stops_near_the_predicted_sample_count():
     assert report.se_ln <= 0.02 and float(np.percentile(se_map, 99)) == pytest.approx(report.se_ln)
     assert predicted <= report.spp <= 2.5 * predicted
     assert needed_spp(report.spp, report.se_ln, 0.02) <= report.spp
+
+
+def test_adaptive_sampling_meets_the_same_stop_rule_with_fewer_samples():
+    """Per-pixel adaptive sampling: pixels with a quarter of the noise stop once under half the target,
+    the noisy ones go on to it; same stop rule (p99 <= target), fewer samples, the same unbiased mean."""
+    sigma = np.where(np.arange(20) < 10, 0.5, 2.0)[None, :].repeat(10, axis=0)
+    out = {}
+    for sampling in ("uniform", "adaptive"):
+        scene = FakeScene(sigma=sigma, noise_target_ln=0.02, noise_metric="absolute", sampling=sampling)
+        request = quality_request(scene.manifest.render, mixture_weights([(0.0, 2.0), (1.0, 1.0)]), 0.02)
+        assert request["sampling"] == sampling
+        mean, _, se_map, report = render_pose(scene, request)
+        assert report.stopped_by == "target" and float(np.percentile(se_map, 99)) <= 0.02
+        out[sampling] = mean, se_map
+    mean, se_map = out["adaptive"]
+    # Quiet pixels: about (0.5 / 2)^2 = 1/16 of the noisy ones' samples would reach the same error; they
+    # stop under 0.01 instead of 0.02 (4x fewer), so they carry about a quarter of the uniform samples.
+    assert se_map[:, :10].max() <= 0.0105 and se_map[:, :10].mean() > 1.5 * out["uniform"][1][:, :10].mean()
+    # Unbiased: the group means within 5 standard errors of their true values (1 and 3).
+    for k, mu in enumerate((1.0, 3.0)):
+        assert abs(mean[k].mean() - mu) < 5 * 0.02 * mu / np.sqrt(mean[k].size / 3)
+
+
+def test_adaptive_accumulation_keeps_each_pixels_statistics_apart(rng):
+    """A pixel given fewer batches (masked out of the rest) has the statistics of an accumulator that
+    saw only its own batches: per-pixel sample counts, means, halves and errors."""
+    mixtures = np.array([[1.0, 0.0], [0.0, 1.0]])
+    both = BatchAccumulator(mixtures, floor_rel=1e-12, metric="absolute")
+    alone = BatchAccumulator(mixtures, floor_rel=1e-12, metric="absolute")
+    for b in range(12):
+        images = rng.random((2, 1, 2, 1)) + 1.0
+        mask = np.array([[True, b < 5]])
+        shown = np.where(mask[None, ..., None], images, 0.0)
+        both.add(shown, shown[..., 0], 4, mask=mask if b >= 5 else None)
+        if b < 5:
+            alone.add(images[:, :, 1:], images[:, :, 1:, 0], 4)
+    np.testing.assert_array_equal(both.pixel_spp(), [[48, 20]])
+    np.testing.assert_allclose(both.mean()[:, :, 1:], alone.mean(), rtol=1e-6)
+    np.testing.assert_allclose(both.noise()[:, :, 1:], alone.noise(), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(both.se_ln()[:, 1:], alone.se_ln(), rtol=1e-9)
 
 
 def test_stop_rule_honours_max_spp_and_the_time_budget():

@@ -57,6 +57,14 @@ def test_box_resampling_is_the_exact_mean_of_the_cells_it_covers():
     tiles = rotation.box_resample(cells, np.stack([gx0, gy0, gx1, gy1]))
     area = (gx1 - gx0) * (gy1 - gy0)
     np.testing.assert_allclose((tiles * area[None, ..., None]).sum(axis=(1, 2)), cells.sum(axis=(1, 2)), rtol=1e-5)
+    # Squared weights: the variance of the mean of independent cells (9 whole cells of variance 1: 1/9;
+    # a rectangle split 1:3 over two cells: (1/4)^2 + (3/4)^2).
+    ones = np.ones((1, 12, 15, 1))
+    rects = np.array([[3.0, 2.25], [6.0, 5.0], [6.0, 3.25], [9.0, 6.0]])[:, None, :]  # (4, 1, 2)
+    np.testing.assert_allclose(rotation.box_resample(ones, rects, power=2)[0, 0, :, 0], [1 / 9, 0.625], rtol=1e-6)
+    # A rectangle reaching past the grid takes the edge cell there.
+    edge = rotation.box_resample(cells, np.array([-1.0, 0.0, 1.0, 1.0])[:, None, None])[:, 0, 0]
+    np.testing.assert_allclose(edge, cells[:, 0, 0], rtol=1e-6)
 
 
 def test_auto_reuse_takes_rotation_only_for_a_camera_turning_about_its_centre():
