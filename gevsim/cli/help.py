@@ -10,8 +10,9 @@ COMMANDS: dict[str, tuple[str, list[str]]] = {
     "info": ("Print the versions of gevsim and its libraries, the Mitsuba variant gevsim chose and why (CPU "
              "features, libLLVM found or not), and the threads numba and Dr.Jit will use.",
              ["gevsim info"]),
-    "scenes": ("List the built-in scenes with their size, duration and light groups (each lamp's waveform kind). A scene is named by these names in "
-               "configs and on the command line, or given as a manifest .toml of your own.",
+    "scenes": ("List the built-in scenes with their size, duration and light groups (each lamp's waveform "
+               "kind). A scene is named by these names in configs and on the command line, or given as a "
+               "manifest .toml of your own.",
                ["gevsim scenes"]),
     "presets": ("List the sensor presets (ideal, dvs128, davis346, imx636, ...) with their size, thresholds, "
                 "bandwidth, dark current and whether they have an APS; each preset's file cites its sources.",

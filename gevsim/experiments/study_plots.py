@@ -299,7 +299,8 @@ def spectrum(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[st
     f0 = row.get("flicker_frequency_hz")
     if isinstance(f0, (int, float)):
         for k in range(1, 6):
-            ax.axvline(k * f0, color="0.6", ls=":", lw=1, label=f"flicker harmonics (k x {f0:g} Hz)" if k == 1 else None)
+            ax.axvline(k * f0, color="0.6", ls=":", lw=1,
+                       label=f"flicker harmonics (k x {f0:g} Hz)" if k == 1 else None)
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("DVS event-rate amplitude (events/s)")

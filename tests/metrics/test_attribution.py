@@ -3,8 +3,8 @@
 import math
 
 import numpy as np
-from scipy import stats
 import pytest
+from scipy import stats
 
 from gevsim.metrics.attribution import mean_interval, phase_locked_rate, ratio_interval
 
