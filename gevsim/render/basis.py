@@ -43,6 +43,7 @@ from gevsim.render.convergence import (
     NoiseReport,
     error_percentiles,
     mixture_weights,
+    needed_spp,
     next_batch_spp,
     sample_se_ln,
 )
@@ -150,21 +151,31 @@ def render_pose(
             batch(size)
         stopped = "fixed"
     else:
-        stopped = None
+        stopped, ratio = None, None
+        # The error over what each pixel must reach: the target, or a per-pixel map of targets
+        # (``target_map``: a reuse method's budget for the cells it renders anew).
+        goal = request.get("target_map", target)
+        frac = float(request.get("stop_fraction", ADAPTIVE_STOP_FRACTION))
         while stopped is None:
             have = acc.spp if active is None else int(acc.pixel_spp()[active].min())
             if active is not None:
                 cap = max(1, MAX_BATCH_PATHS // (int(active.sum()) * per))
             size = next_batch_spp(have // per, first=max(1, FIRST_BATCH_SPP // per), cap=cap)
+            if active is not None and ratio is not None:  # adaptive: toward the active pixels' median need,
+                # at most doubling their samples a round (few, large batches: each costs ~30 ms of set-up)
+                need = needed_spp(have, float(np.median(ratio[active])), frac)
+                size = int(min(cap, max(size, min(have, (need - have) / 2) // per)))
             size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - have) // (2 * per))))
             for _ in range(2):
                 batch(size)
             elapsed = time.perf_counter() - start
             se = acc.se_ln() if acc.batches >= MIN_BATCHES else None
-            if adaptive and se is not None:
-                active = se > ADAPTIVE_STOP_FRACTION * target
+            ratio = None if se is None else se / goal
+            if adaptive and ratio is not None:
+                active = ratio > frac
             have = int(acc.pixel_spp()[active].min()) if active is not None and active.any() else acc.spp
-            if se is not None and np.percentile(se, request["percentile"]) <= target:
+            if se is not None and (np.percentile(se, request["percentile"]) <= target if np.isscalar(goal)
+                                   else np.percentile(ratio, request["percentile"]) <= 1.0):
                 stopped = "target"
             elif have + 2 * exact_count(r.sampler, 1) * per > request["max_spp"]:
                 stopped = "max_spp"
@@ -178,6 +189,7 @@ def render_pose(
     report = NoiseReport(spp=acc.spp, batches=acc.batches,
                          se_ln_percentiles=acc.percentiles(request["percentile"], se=se_map),
                          percentile=request["percentile"], target_ln=target, stopped_by=stopped,
+                         spp_mean=float(acc.pixel_spp().mean()),
                          seconds=time.perf_counter() - start, denoised_se_ln=denoised)
     return mean, noise, se_map.astype(np.float32), report
 

@@ -96,6 +96,7 @@ class NoiseReport:
     stopped_by: str  # "target", "max_spp", "time_budget", "fixed"
     seconds: float
     denoised_se_ln: dict | None = None  # percentiles of the denoised images' error (sample_se_ln), if denoised
+    spp_mean: float | None = None  # samples per pixel on average (below ``spp``, the most, under adaptive sampling)
 
     @property
     def se_ln(self) -> float:
@@ -110,7 +111,8 @@ class NoiseReport:
         return {"spp": self.spp, "batches": self.batches, "percentile": self.percentile,
                 "target_ln": self.target_ln, "stopped_by": self.stopped_by, "seconds": self.seconds,
                 "se_ln": {k: float(v) for k, v in self.se_ln_percentiles.items()},
-                "denoised": self.denoised_se_ln is not None, "denoised_se_ln": self.denoised_se_ln}
+                "denoised": self.denoised_se_ln is not None, "denoised_se_ln": self.denoised_se_ln,
+                "spp_mean": self.spp if self.spp_mean is None else self.spp_mean}
 
 
 #: What the stop rule measures: the error of ln Y(w) itself ("absolute"), or of its change

@@ -84,11 +84,14 @@ def cast(scene: MitsubaScene, camera: np.ndarray, u: np.ndarray, v: np.ndarray) 
     d = directions(camera, grid.f_px, grid.cx, grid.cy, u, v)
     d /= np.linalg.norm(d, axis=1, keepdims=True)  # float64: a point re-projects onto its image point exactly
     distance = np.where(valid, np.array(si.t, dtype=np.float64).reshape(-1), 0.0) + near / (d @ camera[:3, 2])
-    owner = dr.full(mi.Int32, -1, len(u))
-    for i, shape in enumerate(scene.scene.shapes()):
-        owner[si.shape == mi.ShapePtr(shape)] = i
+    # The shape hit, as its index in scene.shapes(): Mitsuba's registry id of each shape, looked up.
+    ids = np.array([int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in scene.scene.shapes()])
+    lookup = np.full(int(ids.max(initial=0)) + 1, -1, np.int64)
+    lookup[ids] = np.arange(len(ids))
+    hit = np.array(dr.reinterpret_array(mi.UInt32, si.shape), dtype=np.int64).reshape(-1)
+    owner = np.where(valid & (hit < len(lookup)), lookup[np.minimum(hit, len(lookup) - 1)], -1)
     normal = np.array(si.n, dtype=np.float64).reshape(3, -1).T if len(u) > 1 else np.array(si.n).reshape(1, 3)
-    return Hits(camera[:3, 3] + d * distance[:, None], valid, np.array(owner, dtype=np.int64).reshape(-1), normal)
+    return Hits(camera[:3, 3] + d * distance[:, None], valid, owner, normal)
 
 
 def visible_from(scene: MitsubaScene, points: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -137,9 +140,13 @@ def reproject(scene: MitsubaScene, grid: PinholeGrid, camera: np.ndarray, *,
     m = scene.manifest
     w, h = m.render.width * sub, m.render.height * sub
     vc, uc = np.mgrid[0:h + 1, 0:w + 1].astype(float) / sub
-    corners = cast(scene, camera, uc, vc)
-    centres = cast(scene, camera, uc[:-1, :-1] + 0.5 / sub, vc[:-1, :-1] + 0.5 / sub)
+    n_corners = uc.size  # corners and centres in one cast and one visibility test
+    both = cast(scene, camera, np.r_[uc.ravel(), (uc[:-1, :-1] + 0.5 / sub).ravel()],
+                np.r_[vc.ravel(), (vc[:-1, :-1] + 0.5 / sub).ravel()])
+    corners, centres = (Hits(both.points[part], both.valid[part], both.shape[part], both.normal[part])
+                        for part in (slice(None, n_corners), slice(n_corners, None)))
     ref_centre = grid.camera[:3, 3]
+    seen_all = visible_from(scene, both.points, ref_centre) & both.valid
 
     def cells(hits: Hits, shape: tuple[int, int]) -> np.ndarray:
         uv = image_points(grid.camera, grid.f_px, grid.cx, grid.cy, hits.points - ref_centre)
@@ -153,8 +160,7 @@ def reproject(scene: MitsubaScene, grid: PinholeGrid, camera: np.ndarray, *,
         a = a.reshape(h + 1, w + 1, *a.shape[1:])
         return [a[:-1, :-1], a[:-1, 1:], a[1:, :-1], a[1:, 1:]]
 
-    seen = visible_from(scene, corners.points, ref_centre) & corners.valid
-    seen_mid = visible_from(scene, centres.points, ref_centre) & centres.valid
+    seen, seen_mid = seen_all[:n_corners], seen_all[n_corners:]
     shape_mid, normal_mid = centres.shape.reshape(h, w), centres.normal.reshape(h, w, 3)
     cos_max = math.cos(math.radians(MAX_NORMAL_DEG))
     ok = seen_mid.reshape(h, w).copy()

@@ -253,8 +253,8 @@ def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -
         scene.set_pose(pose)
         grid = PinholeGrid(pose.camera, focal_px(m.fov_deg, w), w / 2, h / 2, 0.0, 0.0, w * s, h * s, s)
         if request.get("sampling") == "adaptive" and request["target_ln"] is not None:
-            # Each cell to s x the target (a pixel of s^2 such cells meets it), per cell adaptively.
-            ask = {**request, "target_ln": request["target_ln"] * s}
+            ask = {**request, "target_ln": request["target_ln"] * s, "stop_fraction": 1.0,
+                   "target_map": cell_targets(var, ok, request["target_ln"], s).ravel()[None, todo]}
         else:
             # The window's density of samples, in 4 batches (a noise sample and 3 degrees of freedom for the
             # reported error; the default 8 or more cost ~70 ms of tracing each for a few thousand cells).
@@ -269,6 +269,20 @@ def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -
 
     se = np.sqrt(var.reshape(h, s, w, s).sum(axis=(1, 3)) / s**4).astype(np.float32)
     return pixels(cells).astype(np.float32), pixels(cell_noise).astype(np.float32), se, ok
+
+
+def cell_targets(var: np.ndarray, ok: np.ndarray, target: float, s: int) -> np.ndarray:
+    """(H s, W s) ln error each cell rendered anew may have so that its pixel meets ``target``: what the
+    pixel's reused cells (variances ``var``, reused where ``ok``) leave of its budget (a pixel's variance
+    is its cells' sum / s^4), shared equally by its other cells; where the reused cells alone use more
+    than (1 - 1/s^2) of it, each new cell gets what a pixel of s^2 new cells would (s x the target)."""
+    h, w = ok.shape[0] // s, ok.shape[1] // s
+    reused = np.where(ok, var, 0.0).reshape(h, s, w, s).sum(axis=(1, 3))
+    fresh = (~ok).reshape(h, s, w, s).sum(axis=(1, 3))
+    left = (target * s * s) ** 2 - reused
+    each = np.where(fresh > 0, left / np.maximum(fresh, 1), 0.0)
+    each = np.maximum(each, (target * s) ** 2)  # never stricter than s x the target for a cell
+    return np.repeat(np.repeat(np.sqrt(each), s, axis=0), s, axis=1)
 
 
 def _window_render(scene, g, key, t_ref, request, cache, budget, out, first) -> tuple:
