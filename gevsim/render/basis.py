@@ -17,6 +17,7 @@ name: a cached render that meets a request serves it (:func:`serves`).
 from __future__ import annotations
 
 import logging
+import math
 import os
 import time
 from collections.abc import Callable
@@ -165,6 +166,8 @@ def render_pose(
                 # at most doubling their samples a round (few, large batches: each costs ~30 ms of set-up)
                 need = needed_spp(have, float(np.median(ratio[active])), frac)
                 size = int(min(cap, max(size, min(have, (need - have) / 2) // per)))
+                size = 4 ** int(math.log(max(size, 1), 4) + 1e-9)  # a power of 4: Dr.Jit compiles a kernel per
+                # sample count (~0.5 s each), so batch sizes come from a short list that its kernel cache keeps
             size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - have) // (2 * per))))
             for _ in range(2):
                 batch(size)
