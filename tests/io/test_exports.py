@@ -59,6 +59,17 @@ def test_evreal_folder_is_read_by_evreals_layout(good, tmp_path):
     np.testing.assert_array_equal(xy, np.c_[dvs["x"], dvs["y"]])
     images = np.load(out / "images.npy")
     assert images.dtype == np.uint8 and images.shape[1:3] == (h, w)
+    # What EVREAL's MemMapDataset.load_data then does (numpy only; the class needs torch, which is not
+    # installed): frame stamps one per image, image_event_indices (M, 1) read as [k][0], frames read as
+    # images[k][:, :, 0], polarity as p * 2 - 1, the resolution from metadata.json as [H, W].
+    import json
+
+    stamps, indices = np.load(out / "images_ts.npy"), np.load(out / "image_event_indices.npy")
+    assert len(stamps) == len(images) == len(indices) and indices.shape[1] == 1
+    assert np.all(np.diff(indices[:, 0]) >= 0) and 0 <= indices.min() and indices.max() < len(ts)
+    assert images[0][:, :, 0].shape == (h, w)
+    np.testing.assert_array_equal(p.squeeze() * 2.0 - 1.0, np.where(dvs["p"] > 0, 1.0, -1.0))
+    assert json.loads((out / "metadata.json").read_text())["sensor_resolution"] == [h, w]
 
 
 def test_an_output_that_is_not_a_gevsim_export_is_refused(good, tmp_path, capsys):
