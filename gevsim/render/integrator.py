@@ -44,6 +44,7 @@ variants a Python loop per path would be far too slow, so
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -140,6 +141,15 @@ def _group_of(emitter, group_ptrs):
     return idx
 
 
+def padded_count(n: int) -> int:
+    """The least size >= ``n`` of the ladder round(2^(j/2)) (at most 42 % more): the pixel counts a subset
+    render is padded to, so that its compiled kernels are few and stay in Dr.Jit's cache."""
+    j = max(0, math.ceil(2 * math.log2(max(n, 1)) - 1e-9))
+    while round(2 ** (j / 2)) < n:
+        j += 1
+    return max(n, round(2 ** (j / 2)))
+
+
 def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int, max_depth: int,
                   rr_depth: int = 5, grid: Any = None, pixels: Any = None) -> np.ndarray:
     """Render K light-group images of ``scene`` from one set of paths.
@@ -182,6 +192,13 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
     sampler.set_sample_count(spp)
     spp = sampler.sample_count()
     sampler.set_samples_per_wavefront(spp)
+    if pixels is not None:  # padded to a size from a short ladder: Dr.Jit compiles the kernel anew for every
+        # path count (~0.5 s; measured), and reuse methods ask for a different number of pixels every time
+        asked = np.asarray(pixels, np.int64).ravel()
+        if asked.size == 0:
+            raise ValueError("render_groups: pixels is empty")
+        size = padded_count(asked.size)
+        pixels = np.concatenate([asked, np.full(size - asked.size, asked[0])])
     n_pixels = width * height if pixels is None else len(pixels)
     n_paths = n_pixels * spp
     if n_paths >= 2**32:
@@ -317,6 +334,8 @@ def render_groups(scene: Any, groups: Sequence[Sequence], *, spp: int, seed: int
             dr.scatter_reduce(dr.ReduceOp.Add, image, part, (k * n_pixels + local) * channels + c)
     shape = (height, width) if pixels is None else (1, n_pixels)
     out = np.array(image, dtype=np.float64).reshape(k_groups, *shape, channels) / spp
+    if pixels is not None:
+        out = out[:, :, :asked.size]  # the padding's pixels are dropped
     return out.astype(np.float32)
 
 

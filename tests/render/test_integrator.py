@@ -84,3 +84,14 @@ def test_render_groups_uses_one_pass_or_falls_back_per_group(variants_rgb):
     assert sc.one_pass == (not variants_rgb.variant.startswith("scalar"))
     imgs = sc.render_groups(spp=4, seed=1)
     assert imgs.shape == (2, 48, 64, 3) and (imgs.sum(axis=(1, 2, 3)) > 0).all()
+
+
+def test_subset_renders_are_padded_to_a_short_ladder_of_sizes():
+    """Dr.Jit compiles a kernel per path count: subset sizes are padded to round(2^(j/2)), so 1..100000
+    pixels need at most 34 kernels per sample count, never more than 42 % extra pixels."""
+    from gevsim.render.integrator import padded_count
+
+    sizes = [padded_count(n) for n in range(1, 100_001)]
+    assert all(s >= n for n, s in zip(range(1, 100_001), sizes))
+    assert max(s / n for n, s in zip(range(1, 100_001), sizes)) <= 1.42
+    assert len(set(sizes)) <= 34
