@@ -98,12 +98,16 @@ def primary_rays(grid: PinholeGrid, position: Any, *, near_clip_m: float = NEAR_
     import mitsuba as mi
 
     m = np.asarray(grid.camera, float)
-    u = float(grid.u0) + position.x / float(grid.sub)
-    v = float(grid.v0) + position.y / float(grid.sub)
-    local = dr.normalize(mi.Vector3f((float(grid.cx) - u) / float(grid.f_px), (float(grid.cy) - v) / float(grid.f_px),
-                                     1.0))
-    rows = [[float(m[i, j]) for j in range(3)] for i in range(3)]
+
+    def c(x: float) -> Any:  # a kernel input, not a literal: one compiled kernel serves every pose and window
+        return dr.opaque(mi.Float, float(x))
+
+    u = c(grid.u0) + position.x / float(grid.sub)
+    v = c(grid.v0) + position.y / float(grid.sub)
+    f = c(grid.f_px)
+    local = dr.normalize(mi.Vector3f((c(grid.cx) - u) / f, (c(grid.cy) - v) / f, 1.0))
+    rows = [[c(m[i, j]) for j in range(3)] for i in range(3)]
     world = mi.Vector3f(*(rows[i][0] * local.x + rows[i][1] * local.y + rows[i][2] * local.z for i in range(3)))
-    near_t = near_clip_m / local.z
-    origin = mi.Point3f(*(float(m[i, 3]) + world[i] * near_t for i in range(3)))
+    near_t = c(near_clip_m) / local.z
+    origin = mi.Point3f(*(c(m[i, 3]) + world[i] * near_t for i in range(3)))
     return mi.Ray3f(origin, world)

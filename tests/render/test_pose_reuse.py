@@ -116,3 +116,25 @@ def test_a_sliding_camera_reprojects_through_the_geometry_within_the_render_nois
     var = uniform_filter(moved.noise.astype(float) ** 2 + brute.noise.astype(float) ** 2, size=(1, 1, 5, 5, 1))
     z = (moved.images - brute.images) / np.sqrt(var + 1e-30)
     assert abs(z.mean()) < 0.05 and 0.85 < z.std() < 1.2  # measured at 64x48: mean -0.012, sd 1.07
+
+
+def test_adaptive_parallax_meets_the_noise_target_at_every_pose(tmp_path):
+    """sampling = "adaptive" (office_dolly's setting): the window and the cells rendered anew stop per pixel,
+    every pose still meets the noise target at its percentile, and the poses equal uniform per-pose renders
+    in expectation (z-scores of the difference over both noise samples)."""
+    m = load(SCENES / "office_dolly.toml")
+    assert m.render.sampling == "adaptive"
+
+    def dolly(**render):
+        return MitsubaScene(dataclasses.replace(m, render=dataclasses.replace(
+            m.render, width=32, height=24, noise_target_ln=0.08, **render)))
+
+    moved = render_basis(dolly(), cache_dir=tmp_path / "a")
+    brute = render_basis(dolly(reuse="none", sampling="uniform"), cache_dir=tmp_path / "b")
+    assert all(q["reuse"] == "parallax" and q["se_ln"]["p99"] <= 0.08 for q in moved.quality)
+    assert any(q["spp_mean"] < q["spp"] for q in moved.quality)  # pixels did stop early
+    from scipy.ndimage import uniform_filter
+
+    var = uniform_filter(moved.noise.astype(float) ** 2 + brute.noise.astype(float) ** 2, size=(1, 1, 5, 5, 1))
+    z = (moved.images - brute.images) / np.sqrt(var + 1e-30)
+    assert abs(z.mean()) < 0.05 and 0.8 < z.std() < 1.25
