@@ -150,8 +150,8 @@ def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 10
             frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=1000.0 / fps,
                            loop=0, comment=MARK.encode())
         else:
-            frames, _ = video_frames(pictures)
-            iio.imwrite(tmp, frames, extension=".mp4", fps=fps, macro_block_size=1,
+            video, _ = video_frames(pictures)
+            iio.imwrite(tmp, video, extension=".mp4", fps=fps, macro_block_size=1,
                         output_params=["-metadata", f"comment={MARK}"])
     return out
 

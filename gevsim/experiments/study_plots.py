@@ -240,10 +240,12 @@ def rates(folder: Path, study: Study, rows: list[dict], plt: Any) -> tuple[str, 
 
 
 #: Line styles and markers that tell series apart where colour names the method.
-SERIES_STYLES = [(("-", "--", ":", "-.")[k % 4], ("o", "s", "^", "D", "v", "P")[k % 6]) for k in range(12)]
+SERIES_STYLES: list[tuple[Any, str]] = [(("-", "--", ":", "-.")[k % 4], ("o", "s", "^", "D", "v", "P")[k % 6])
+                                        for k in range(12)]
 
 
-def method_styles(methods: Sequence[str], groups: Sequence[str]) -> tuple[dict[str, str], dict[str, tuple[str, str]]]:
+def method_styles(methods: Sequence[str],
+                  groups: Sequence[str]) -> tuple[dict[str, str], dict[str, tuple[Any, str]]]:
     """A colour per method (matplotlib's ten cycle colours; gevsim has fewer methods) and a (line style,
     marker) per series (12 distinct pairs, then repeated)."""
     colours = {m: f"C{k % 10}" for k, m in enumerate(methods)}

@@ -137,10 +137,10 @@ def render_pose(
         else:  # the active cells among those asked for
             where = np.flatnonzero(active.ravel())
             render = np.asarray(pixels)[where]
-        part = scene.render_groups(spp=spp, seed=seed, one_pass=one_pass, **{**on_grid, "pixels": render})
-        full = np.zeros((part.shape[0], full_shape[0] * full_shape[1], part.shape[-1]), np.float32)
-        full[:, where] = part[:, 0]
-        full = full.reshape(part.shape[0], *full_shape, part.shape[-1])
+        part = scene.render_groups(spp=spp, seed=seed, one_pass=one_pass, grid=grid, pixels=render)
+        flat = np.zeros((part.shape[0], full_shape[0] * full_shape[1], part.shape[-1]), np.float32)
+        flat[:, where] = part[:, 0]
+        full = flat.reshape(part.shape[0], *full_shape, part.shape[-1])
         acc.add(full, luminance(full), scene.sample_count(spp) * per, mask=active)
 
     if target is None:
@@ -177,8 +177,9 @@ def render_pose(
             if adaptive and ratio is not None:
                 active = ratio > frac
             have = int(acc.pixel_spp()[active].min()) if active is not None and active.any() else acc.spp
-            if se is not None and (np.percentile(se, request["percentile"]) <= target if np.isscalar(goal)
-                                   else np.percentile(ratio, request["percentile"]) <= 1.0):
+            if se is not None and ratio is not None and (
+                    np.percentile(se, request["percentile"]) <= target if np.isscalar(goal)
+                    else np.percentile(ratio, request["percentile"]) <= 1.0):
                 stopped = "target"
             elif have + 2 * exact_count(r.sampler, 1) * per > request["max_spp"]:
                 stopped = "max_spp"

@@ -250,6 +250,8 @@ class BatchAccumulator:
         p, q, c = self._p, self._q, self._c
         if self.batches < 2 or p is None or q is None or c is None or self._n is None or self._nb is None:
             return np.full(p.shape[1:] if p is not None else (0, 0), np.inf)
+        n: float | np.ndarray
+        dof: int | np.ndarray
         if (self._nb == self.batches).all() and (self._n == self.spp).all():
             n, dof = float(self.spp), self.batches - 1
         else:  # per pixel (adaptive sampling); a pixel with fewer than 2 batches has an infinite error

@@ -93,7 +93,7 @@ class FakeScene:
 
     one_pass = True
 
-    def render_groups(self, *, spp, seed, one_pass=None, pixels=None):
+    def render_groups(self, *, spp, seed, one_pass=None, grid=None, pixels=None):
         self.one_pass_seen.add(one_pass)
         time.sleep(self.delay_s)
         mu = np.array([1.0, 3.0])[:, None, None, None]
