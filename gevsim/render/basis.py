@@ -152,13 +152,12 @@ def render_pose(
             batch(size)
         stopped = "fixed"
     else:
-        stopped, ratio = None, None
+        stopped, ratio, have = None, None, 0  # have: samples of the pixels still sampled (the least)
         # The error over what each pixel must reach: the target, or a per-pixel map of targets
         # (``target_map``: a reuse method's budget for the cells it renders anew).
         goal = request.get("target_map", target)
         frac = float(request.get("stop_fraction", ADAPTIVE_STOP_FRACTION))
         while stopped is None:
-            have = acc.spp if active is None else int(acc.pixel_spp()[active].min())
             if active is not None:
                 cap = max(1, MAX_BATCH_PATHS // (int(active.sum()) * per))
             size = next_batch_spp(have // per, first=max(1, FIRST_BATCH_SPP // per), cap=cap)

@@ -274,8 +274,9 @@ def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -
 def cell_targets(var: np.ndarray, ok: np.ndarray, target: float, s: int) -> np.ndarray:
     """(H s, W s) ln error each cell rendered anew may have so that its pixel meets ``target``: what the
     pixel's reused cells (variances ``var``, reused where ``ok``) leave of its budget (a pixel's variance
-    is its cells' sum / s^4), shared equally by its other cells; where the reused cells alone use more
-    than (1 - 1/s^2) of it, each new cell gets what a pixel of s^2 new cells would (s x the target)."""
+    is its cells' sum / s^4), shared equally by its new cells, but never less than s x the target (what
+    each cell of a pixel of s^2 new cells needs): where the reused cells leave less than that, the pixel
+    may end above the target, as it may under uniform sampling."""
     h, w = ok.shape[0] // s, ok.shape[1] // s
     reused = np.where(ok, var, 0.0).reshape(h, s, w, s).sum(axis=(1, 3))
     fresh = (~ok).reshape(h, s, w, s).sum(axis=(1, 3))
