@@ -12,9 +12,9 @@ import numpy as np
 
 from gevsim.emulation import layout
 from gevsim.events.statistics import event_probability, event_rates
-from gevsim.io import EventReader, hdf5
+from gevsim.io import EventReader, event_reader
 
-BATCH_FRAMES = 64  # frame intervals per read at most (fewer when they hold more than hdf5.WINDOW_EVENTS events)
+BATCH_FRAMES = 64  # frame intervals per read at most (fewer when they hold more than event_reader.WINDOW_EVENTS events)
 
 __all__ = ["RunSummary", "StreamStats", "summarize"]
 
@@ -93,14 +93,14 @@ class StreamStats(_Fields):
 
 def _frame_batches(r: EventReader, stream: str, frame_t: np.ndarray) -> list[tuple[int, int]]:
     """Consecutive runs ``(a, b)`` of frame intervals (frame_t[a], frame_t[b]], each of at most
-    BATCH_FRAMES intervals and hdf5.WINDOW_EVENTS events (one interval however many it holds)."""
+    BATCH_FRAMES intervals and event_reader.WINDOW_EVENTS events (one interval however many it holds)."""
     if len(frame_t) < 2:
         return []
     lo, hi = r.index_bounds(stream, np.asarray(frame_t, np.int64) + 1)
     out, a = [], 0
     while a < len(frame_t) - 1:
         b = a + 1
-        while b + 1 < len(frame_t) and b - a < BATCH_FRAMES and hi[b + 1] - lo[a] <= hdf5.WINDOW_EVENTS:
+        while b + 1 < len(frame_t) and b - a < BATCH_FRAMES and hi[b + 1] - lo[a] <= event_reader.WINDOW_EVENTS:
             b += 1
         out.append((a, b))
         a = b
@@ -122,7 +122,7 @@ def summarize(path: str | os.PathLike, *, frames: str = layout.LOG_PHOTOCURRENT)
                 # Events in (ft[0], ft[-1]]: read [ft[0] + 1, ft[-1] + 1) in microseconds.
                 ev = r.read(stream, int(ft[0]) + 1, int(ft[-1]) + 1)
                 probabilities.append(event_probability(ev, ft, width=w, height=h))
-            # Rates from windows of at most hdf5.WINDOW_EVENTS events, so memory stays bounded.
+            # Rates from windows of at most event_reader.WINDOW_EVENTS events, so memory stays bounded.
             totals: dict[str, float] = {}
             count = 0
             for start, end in r.windows(stream, 0, int(r.t_end_us) + 1):

@@ -63,7 +63,7 @@ def _stream(r: EventReader, emulator: str) -> str:
 
 def _windows(r: EventReader, stream: str, t_us) -> list[list[tuple[int, int]]]:
     """Per frame k the read windows covering the events in (t_us[k-1], t_us[k]] (from t = 0 for
-    k = 0), each of at most :data:`~gevsim.io.hdf5.WINDOW_EVENTS` events: methods read the
+    k = 0), each of at most :data:`~gevsim.io.event_reader.WINDOW_EVENTS` events: methods read the
     stream window by window, so memory is bounded whatever the duration."""
     out, start = [], 0
     for t in t_us:

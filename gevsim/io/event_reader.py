@@ -16,6 +16,8 @@ from gevsim.io import checks
 FORMAT = "gevsim-events-2"
 #: Formats EventReader reads: 1 stored the polarity as an HDF5 bool enum and had no root ms_to_idx.
 READABLE_FORMATS = ("gevsim-events-1", FORMAT)
+#: Default bound on the events of one window of :meth:`EventReader.windows` (~13 MiB of brightness events).
+WINDOW_EVENTS = 2**20
 
 
 #: Streams already checked, per file identity (see EventReader); bounded: cleared when it grows past 256 files.
@@ -165,9 +167,7 @@ class EventReader:
         Reading a stream window by window bounds memory whatever the duration or event rate.
         ``max_events`` defaults to :data:`WINDOW_EVENTS` (read at the call)."""
         if max_events is None:
-            from gevsim.io import hdf5  # read at the call, where callers and tests set it
-
-            max_events = hdf5.WINDOW_EVENTS
+            max_events = WINDOW_EVENTS  # read at the call, where callers and tests set it
         if not isinstance(max_events, int | np.integer) or max_events < 1:
             raise ValueError(f"max_events must be a positive integer, got {max_events!r}")
         t0, t1 = int(t_start_us), int(t_end_us)

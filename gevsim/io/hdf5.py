@@ -81,8 +81,6 @@ log = logging.getLogger(__name__)
 GZIP_LEVEL = 1
 #: Event chunks queued for the writer thread beyond the one it is writing (the caller blocks when full).
 QUEUE_CHUNKS = 2
-#: Default bound on the events of one window of :meth:`EventReader.windows` (~13 MiB of brightness events).
-WINDOW_EVENTS = 2**20
 _RESERVED_ATTRS = {"width", "height", "config_toml", "seed", "gevsim_version", "format", "complete", "t_end_us"}
 
 class EventWriter:

@@ -8,7 +8,7 @@ receive an output of kind K when it is missing or empty, or when it carries the 
 (for a replaced folder) holds nothing beyond the entries the mark lists. A folder written before the
 mark existed is recognised by its layout (:func:`legacy_kind`), so earlier outputs can be replaced
 or resumed. Anything else is refused with one :class:`~gevsim.errors.ConfigError`. The lock file
-and leftover stages (:mod:`gevsim.io.atomic`) are gevsim's by name and never count as foreign.
+and leftover stages (:mod:`gevsim.io.staging`) are gevsim's by name and never count as foreign.
 
 A file output (an emulation file, an AEDAT4 export) may replace only a file of its own kind; a
 kind's test lives with its format (``is_ours``). Names from configs that become path parts (light
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import gevsim
 from gevsim.errors import ConfigError
-from gevsim.io.atomic import _STAGE, LOCK_NAME, MANIFEST, atomic_write_text, sweep_stale
+from gevsim.io.staging import _STAGE, LOCK_NAME, MANIFEST, atomic_write_text, sweep_stale
 
 #: The mark of a folder gevsim wrote (JSON: kind, gevsim version, entries).
 MARK = ".gevsim.output"
@@ -228,7 +228,7 @@ def is_event_file(path: Path) -> bool:
     emulation may replace."""
     import h5py
 
-    from gevsim.io.hdf5 import READABLE_FORMATS
+    from gevsim.io.event_reader import READABLE_FORMATS
 
     try:
         if not h5py.is_hdf5(path):

@@ -152,7 +152,7 @@ def test_summary_reads_back_in_windows_the_same_statistics(tmp_path, monkeypatch
 
     run(load_config(config(tmp_path, frame_rate_hz=2000.0)), tmp_path / "o.h5", cache_dir=tmp_path / "c")
     monkeypatch.setattr(summary_mod, "BATCH_FRAMES", 3)  # several windows
-    monkeypatch.setattr("gevsim.io.hdf5.WINDOW_EVENTS", 40)  # and fewer frames where they hold more events
+    monkeypatch.setattr("gevsim.io.event_reader.WINDOW_EVENTS", 40)  # and fewer frames where they hold more events
     stats = summary_mod.summarize(tmp_path / "o.h5")
     with EventReader(tmp_path / "o.h5") as r:
         frame_t = r.frames("log_photocurrent")[1]
@@ -247,7 +247,7 @@ def test_summary_rates_in_windows_equal_whole_stream_rates(tmp_path, monkeypatch
     from gevsim.events import event_rates
 
     run(load_config(config(tmp_path)), tmp_path / "o.h5", cache_dir=tmp_path / "c")
-    monkeypatch.setattr("gevsim.io.hdf5.WINDOW_EVENTS", 50)  # several windows over the 4 ms run
+    monkeypatch.setattr("gevsim.io.event_reader.WINDOW_EVENTS", 50)  # several windows over the 4 ms run
     stats = summary_mod.summarize(tmp_path / "o.h5")
     with EventReader(tmp_path / "o.h5") as r:
         for stream in STREAMS:

@@ -134,7 +134,7 @@ def test_methods_read_events_in_bounded_windows_with_the_same_frames(emulation, 
         return out
 
     monkeypatch.setattr(EventReader, "read", spy)
-    monkeypatch.setattr("gevsim.io.hdf5.WINDOW_EVENTS", 8)
+    monkeypatch.setattr("gevsim.io.event_reader.WINDOW_EVENTS", 8)
     windowed, _, _ = reconstruct_file(emulation, method)
     assert max(sizes) <= max(per_ms, 8) < total and len(sizes) > 4
     np.testing.assert_array_equal(windowed.frames, whole.frames)
