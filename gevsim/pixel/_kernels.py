@@ -26,6 +26,12 @@ from numba import njit, prange
 from gevsim._portable import exp_scalar, expm1_scalar
 from gevsim.pixel._cascade import read_coefficients, smooth_row
 from gevsim.pixel._fastmath import expf, logf
+from gevsim.pixel.mechanisms._base import (
+    STREAM_CASCADED_OUTPUT,
+    STREAM_OUTPUT_POLES,
+    STREAM_PHOTORECEPTOR,
+    STREAM_PHOTORECEPTOR_OUTPUT,
+)
 
 BLOCK = 1024  # pixels per parallel work item (fixed, so results do not depend on threads)
 _TWO_PI = 2.0 * math.pi
@@ -227,7 +233,12 @@ def _ou_row(state, out, z, alpha, scale):
 @njit(parallel=True, nogil=True, cache=True)
 def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0,
                   fc_ref, i_ref, fc_max, f2, shot_q, amp, n_read, out):
-    """Advance the photoreceptor over T steps of held photocurrent.
+    """Advance the photoreceptor over T steps of held photocurrent. (One function over 80 lines: one
+    compiled loop over blocks and steps, so that no state leaves the CPU caches between stages.)
+
+    The noise arguments are the sums of :func:`gevsim.pixel.mechanisms.kernel_noise` (shot_q, amp,
+    fn_hz, fn_var, n_read); the random streams are the named ``STREAM_*`` of
+    :mod:`gevsim.pixel.mechanisms._base`.
 
     current (T, P) photocurrent (A) held over each step of duration dt (T,) s,
     finite and with current * gain + dark > 0 (checked by the caller);
@@ -260,14 +271,14 @@ def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0
     steps = np.empty((T, 2))  # b2, 1 - b2 of the output pole
     read = np.zeros((T, 6))
     for t in range(T):
-        keys[t, 0] = stream_key(key, step0 + t, 1)
-        keys[t, M + 1] = stream_key(key, step0 + t, 2)
-        keys[t, M + 2] = stream_key(key, step0 + t, 99)
+        keys[t, 0] = stream_key(key, step0 + t, STREAM_PHOTORECEPTOR)
+        keys[t, M + 1] = stream_key(key, step0 + t, STREAM_PHOTORECEPTOR_OUTPUT)
+        keys[t, M + 2] = stream_key(key, step0 + t, STREAM_CASCADED_OUTPUT)
         for m in range(M):
             alpha = exp_scalar(-_TWO_PI * fn_hz[m] * dt[t])
             fn_alpha[t, m] = alpha
             fn_scale[t, m] = math.sqrt(fn_var[m] * (1.0 - alpha * alpha))
-            keys[t, m + 1] = stream_key(key, step0 + t, 3 + m)
+            keys[t, m + 1] = stream_key(key, step0 + t, STREAM_OUTPUT_POLES + m)
         eb2 = -expm1_scalar(-beta * dt[t]) if has2 else 1.0
         steps[t, 0], steps[t, 1] = 1.0 - eb2, eb2
         if smooth_read:

@@ -1,6 +1,7 @@
-"""Noise of the logarithmic pixel: analytic variances and fixed patterns.
+"""Noise of the logarithmic pixel: analytic variances, fixed patterns and the step it needs.
 
-Temporal noise is generated inside the photoreceptor kernel
+The mechanisms themselves are entries of :data:`gevsim.pixel.mechanisms.NOISE_MECHANISMS`, one
+module each. Temporal noise is generated inside the photoreceptor kernel
 (:mod:`gevsim.pixel._kernels`); this module holds the analytic results it must
 reproduce and draws the per-pixel fixed patterns from a numpy Generator.
 """
@@ -16,7 +17,15 @@ from numpy.typing import ArrayLike
 from scipy.constants import elementary_charge
 
 from gevsim import _portable as pm
-from gevsim.pixel.params import REFERENCE_TEMPERATURE_K, NoiseParams, thermal_factor
+from gevsim.pixel.mechanisms import kernel_noise
+from gevsim.pixel.mechanisms.dark_current import dark_current_a
+from gevsim.pixel.mechanisms.flicker import flicker_noise_poles
+from gevsim.pixel.mechanisms.shot import shot_noise_factor
+from gevsim.pixel.params import NoiseParams
+from gevsim.pixel.thermal import REFERENCE_TEMPERATURE_K
+
+__all__ = ["STEP_FRACTION", "coarsest_step_s", "dark_current_a", "fixed_pattern", "flicker_noise_poles",
+           "output_noise_poles", "shot_noise_factor", "shot_noise_variance_ln"]
 
 
 def shot_noise_variance_ln(photocurrent_a: ArrayLike, cutoff_hz: ArrayLike) -> np.ndarray:
@@ -30,43 +39,11 @@ def shot_noise_variance_ln(photocurrent_a: ArrayLike, cutoff_hz: ArrayLike) -> n
     return math.pi * elementary_charge * np.asarray(cutoff_hz, float) / i
 
 
-def flicker_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndarray, np.ndarray]:
-    """Corner frequencies and variances of Ornstein-Uhlenbeck processes whose sum has
-    a 1/f spectrum between the two corners (one pole per decade, equal variance:
-    McWhorter's construction); total variance = (flicker_noise_v / n U_T)^2."""
-    if noise.flicker_noise_v == 0:
-        return np.zeros(0), np.zeros(0)
-    lo, hi = noise.flicker_noise_low_hz, noise.flicker_noise_high_hz
-    decades = float(pm.log10(hi / lo))
-    m = max(2, min(8, math.ceil(decades) + 1))
-    hz = lo * pm.exp(np.arange(m) / (m - 1) * float(pm.log(hi / lo)))  # geometric, lo to hi
-    hz[0], hz[-1] = lo, hi
-    v = noise.flicker_noise_v / volts_per_ln
-    var = np.full(m, v * v / m)
-    return hz, var
-
-
 def output_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndarray, np.ndarray]:
-    """All Ornstein-Uhlenbeck processes added to the output: the read noise (one pole at
-    ``read_noise_bandwidth_hz``, so its statistics do not depend on the time step) and
-    the 1/f poles."""
-    hz, var = flicker_noise_poles(noise, volts_per_ln)
-    if noise.read_noise_v > 0:
-        hz = np.r_[noise.read_noise_bandwidth_hz, hz]
-        var = np.r_[(noise.read_noise_v / volts_per_ln) * (noise.read_noise_v / volts_per_ln), var]
-    return hz, var
-
-
-def dark_current_a(noise: NoiseParams, temperature_k: float = REFERENCE_TEMPERATURE_K) -> float:
-    """Mean dark current (A) at ``temperature_k``: ``dark_current_a`` (stated at
-    :data:`~gevsim.pixel.params.REFERENCE_TEMPERATURE_K`) doubling every ``dark_current_doubling_k``."""
-    return noise.dark_current_a * thermal_factor(temperature_k, noise.dark_current_doubling_k)
-
-
-def shot_noise_factor(noise: NoiseParams) -> float:
-    """How many equal shot-noise sources the photocurrent drives: the photodiode, and with
-    ``feedback_shot_noise`` the photoreceptor's feedback transistor (same current, variance x2)."""
-    return 2.0 if noise.feedback_shot_noise else 1.0
+    """All Ornstein-Uhlenbeck processes added to the output, those through the output pole first
+    (the read noise: one pole at ``read_noise_bandwidth_hz``, so its statistics do not depend on the
+    time step), then the 1/f poles (:func:`gevsim.pixel.mechanisms.kernel_noise`)."""
+    return kernel_noise(noise, volts_per_ln).poles()
 
 
 def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *, rng: np.random.Generator,
@@ -102,12 +79,12 @@ def coarsest_step_s(photoreceptor: Any, noise: NoiseParams, max_photocurrent_a: 
     f_out = photoreceptor.second_pole_hz
     if f_out is None:
         return None
+    plan = kernel_noise(noise, photoreceptor.volts_per_ln)
     fast = []
-    if noise.shot_noise or noise.amplifier_noise_ln2_hz > 0:
+    if plan.on_photoreceptor_pole:
         dark = dark_current_a(noise, photoreceptor.temperature_k)
         fast.append(float(photoreceptor.cutoff_at(max_photocurrent_a + dark)))
-    if noise.read_noise_v > 0:
-        fast.append(noise.read_noise_bandwidth_hz)
+    fast += plan.cascaded_hz
     if not fast:
         return None
     return STEP_FRACTION / (2.0 * math.pi * math.sqrt(max(fast) * f_out))

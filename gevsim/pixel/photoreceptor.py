@@ -14,13 +14,13 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.constants import elementary_charge
 
 from gevsim import _portable as pm
 from gevsim._finite import count_invalid
 from gevsim.pixel import _kernels
 from gevsim.pixel._cascade import separated_hz
-from gevsim.pixel.noise import fixed_pattern, output_noise_poles, shot_noise_factor
+from gevsim.pixel.mechanisms import NOISE_MECHANISMS, kernel_noise
+from gevsim.pixel.noise import fixed_pattern
 from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
 from gevsim.timebase import check_chunk
 
@@ -50,10 +50,11 @@ class Photoreceptor:
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         if len(shape) != 2 or min(shape) < 1:
             raise ValueError(f"shape must be (H, W) with H, W >= 1, got {shape!r}")
+        plan = kernel_noise(noise, params.volts_per_ln)  # every temporal mechanism's coefficients
         bandwidth = math.isfinite(params.cutoff_hz) or math.isfinite(params.max_cutoff_hz)
-        if noise.shot_noise and not bandwidth:
+        if plan.shot_q > 0 and not bandwidth:
             raise ValueError("shot noise needs a finite photoreceptor bandwidth (its variance grows with it)")
-        if noise.amplifier_noise_ln2_hz > 0 and not bandwidth:
+        if plan.amp_ln2_hz > 0 and not bandwidth:
             raise ValueError("amplifier noise needs a finite photoreceptor bandwidth (its variance is "
                              "amplifier_noise_ln2_hz / f_c)")
         self.shape = tuple(int(s) for s in shape)
@@ -62,17 +63,14 @@ class Photoreceptor:
         self.gain = gain.ravel().astype(np.float64)
         self.dark_a = dark.ravel().astype(np.float64)
         self.key = int(rng.integers(0, 2**64, dtype=np.uint64))  # of the 64-bit counter-based noise generator
-        self.fn_hz, self.fn_var = output_noise_poles(noise, params.volts_per_ln)
+        self.fn_hz, self.fn_var = plan.poles()
         n = self.gain.size
         self.fn = (np.sqrt(self.fn_var)[:, None] * rng.standard_normal((len(self.fn_hz), n))).astype(np.float64)
-        self.n_read = 1 if noise.read_noise_v > 0 else 0  # fn[0] is the read noise
+        self.n_read = plan.n_cascaded  # fn[0] is the read noise when 1
         self.start_z = rng.standard_normal((3, n))  # the noise's stationary start (drawn in either mode)
         self.cold_start = bool(cold_start)
-        # The photoreceptors' DC offsets (ln units), drawn after everything else so that a preset
-        # without them draws the same numbers as before they existed.
-        self.offset_ln = (None if noise.dc_offset_v == 0 else
-                          (noise.dc_offset_v / params.volts_per_ln * rng.standard_normal(n)).astype(np.float32))
-        self.shot_q = math.pi * elementary_charge * shot_noise_factor(noise) if noise.shot_noise else 0.0
+        self.offset_ln = _output_patterns(noise, n, params.volts_per_ln, rng)
+        self.shot_q, self.amp_ln2_hz = plan.shot_q, plan.amp_ln2_hz
         self.v1 = np.zeros(n)
         self.v2 = np.zeros(n)
         self.t_s = float(t0_s)
@@ -148,11 +146,11 @@ class Photoreceptor:
         p = self.params
         f_out = p.second_pole_hz
         beta = 2.0 * math.pi * f_out if f_out is not None else math.inf
-        if self.noise.shot_noise or self.noise.amplifier_noise_ln2_hz > 0:
+        if self.shot_q > 0 or self.amp_ln2_hz > 0:
             fc = p.cutoff_at(itot)  # as the kernel: proportional to the total current, capped
             if f_out is not None:  # as the kernel: a pole within POLE_GAP of the output pole is moved to it
                 fc = separated_hz(fc, f_out)
-            var = self.shot_q * fc / itot + self.noise.amplifier_noise_ln2_hz / fc
+            var = self.shot_q * fc / itot + self.amp_ln2_hz / fc
             alpha = 2.0 * math.pi * fc
             xn = np.sqrt(var) * self.start_z[0]
             v1 += xn
@@ -197,7 +195,7 @@ class Photoreceptor:
         out = np.empty(flat.shape, np.float32)
         _kernels.photoreceptor(
             flat, dt, self.gain, self.dark_a, v1, v2, fn, self.fn_hz, self.fn_var, np.uint64(self.key), self.step,
-            *self._bandwidth(), self.shot_q, self.noise.amplifier_noise_ln2_hz, self.n_read, out,
+            *self._bandwidth(), self.shot_q, self.amp_ln2_hz, self.n_read, out,
         )
         if self.offset_ln is not None:  # the DC offsets pass no filter: they are constant
             out += self.offset_ln
@@ -206,6 +204,19 @@ class Photoreceptor:
         self.step += len(t)
         self.started = True
         return out.reshape((len(t),) + self.shape)
+
+
+def _output_patterns(noise: NoiseParams, n: int, volts_per_ln: float,
+                     rng: np.random.Generator) -> np.ndarray | None:
+    """The sum (ln, float32) of the fixed patterns that the mechanisms on add to the output (the DC
+    offsets), or None. Drawn after everything else, each only when on, so that a preset without one
+    draws the same numbers as before the mechanism existed."""
+    total = None
+    for mechanism in NOISE_MECHANISMS.values():
+        if mechanism.pattern is not None and mechanism.table == "noise" and mechanism.is_on(noise):
+            drawn = mechanism.pattern(noise, n, volts_per_ln, rng)
+            total = drawn if total is None else total + drawn
+    return total
 
 
 def _fixed_point(shift: np.ndarray, gain: np.ndarray) -> np.ndarray:

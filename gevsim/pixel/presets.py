@@ -56,14 +56,18 @@ class SensorPreset:
         return QE_CURVES[self.quantum_efficiency]
 
     def ideal(self) -> SensorPreset:
-        """The same sensor with every noise source and mismatch off (counterfactual runs)."""
+        """The same sensor with every noise mechanism off (counterfactual runs): each entry of
+        :data:`gevsim.pixel.mechanisms.NOISE_MECHANISMS` at its off state. The mean dark current stays
+        (the floor of the log response, not a noise); its spread (DSNU) goes."""
         import dataclasses
+
+        from gevsim.pixel.mechanisms import ideal_values
 
         return dataclasses.replace(
             self,
             name=f"{self.name}-noise-free",
-            noise=NoiseParams(shot_noise=False, dark_current_a=self.noise.dark_current_a),
-            events=dataclasses.replace(self.events, threshold_mismatch_ln=0.0, reset_noise_ln=0.0, leak_rate_hz=0.0),
+            noise=dataclasses.replace(self.noise, **ideal_values("noise")),
+            events=dataclasses.replace(self.events, **ideal_values("events")),
         )
 
 
@@ -109,7 +113,7 @@ def check_dark_current(photoreceptor: PhotoreceptorParams, noise: NoiseParams, *
     """A sensor's dark current must be > 0 at its temperature: the photoreceptor responds to
     ln(I_ph + I_dark), and a black pixel (I_ph = 0) has no finite response without it. (The pixel
     model itself takes 0 where every photocurrent is positive, as analytic tests use.)"""
-    from gevsim.pixel.noise import dark_current_a
+    from gevsim.pixel.mechanisms.dark_current import dark_current_a
 
     dark = dark_current_a(noise, photoreceptor.temperature_k)
     if not dark > 0:
