@@ -181,13 +181,13 @@ def test_any_builder_bug_is_one_line_and_verbose_shows_its_traceback(tmp_path, s
 
 
 def test_a_non_finite_render_is_refused_before_it_is_cached(tmp_path, capsys, scene, monkeypatch):
-    from gevsim.render import basis
+    from gevsim.render import pose_render
 
     def inf_render(scene_, request, **kw):  # what an emitter too bright for float32 gave: inf pixels
         r = scene_.manifest.render
         return np.full((1, r.height, r.width, 3), np.inf, np.float32), None, None, None
 
-    monkeypatch.setattr(basis, "render_pose", inf_render)
+    monkeypatch.setattr(pose_render, "render_pose", inf_render)
     assert cli.main(["render", str(scene), "--out", str(tmp_path / "out"), "--cache", str(tmp_path / "c"), "-q"]) == 2
     lines = capsys.readouterr().err.splitlines()  # the render's own info line, then the error
     assert [line for line in lines if line.startswith("gevsim: error:")] == [lines[-1]]

@@ -50,7 +50,7 @@ class RunSummary(_Fields):
     rates_hz : events per second per stream.
     render_s, pixel_s, total_s : seconds spent rendering (or loading) the basis, in the pixel model, in all.
     event_s : seconds spent in each emulator, by its name.
-    render_noise : achieved render noise (:func:`gevsim.render.basis.summarize_quality`).
+    render_noise : achieved render noise (:func:`gevsim.render.convergence.summarize_quality`).
     pixel_steps_per_s : pixel-model throughput.
     readout : each stream's readout counts (:meth:`gevsim.events.readout.Readout.summary`), as in the
         file's ``readout_json`` attribute.

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim.render.convergence import summarize_quality
 from gevsim.render.scene import MitsubaScene, content_hash
 from gevsim.render.trajectory import Pose
 
@@ -136,7 +137,6 @@ def _read_cached(path: Path, groups: tuple[str, ...], shape: tuple[int, int]):
     """(mean, noise, se_map, meta) of a cached render, or None when absent; a file that is unreadable or not
     what :class:`RenderCache` writes (truncated, foreign, non-finite, another size) is logged and re-rendered."""
     from gevsim.io import read_exr_layers
-    from gevsim.render.basis import summarize_quality
 
     if not path.exists():
         return None

@@ -322,3 +322,18 @@ def needed_spp(spp: int, se_ln: float, target_ln: float) -> float:
     if not math.isfinite(se_ln):
         return math.inf
     return spp * (se_ln / target_ln) ** 2
+
+
+def summarize_quality(quality: list) -> dict:
+    """Worst case over poses of the achieved noise (what every output records)."""
+    if not quality:
+        return {}
+    se = {k: max(q["se_ln"][k] for q in quality) for k in quality[0]["se_ln"]}
+    return {"spp_min": min(q["spp"] for q in quality), "spp_max": max(q["spp"] for q in quality),
+            "se_ln": se, "percentile": quality[0]["percentile"], "target_ln": quality[0]["target_ln"],
+            "reached": all(q["target_ln"] is None or q["se_ln"]["at_percentile"] <= q["target_ln"] for q in quality),
+            "stopped_by": sorted({q["stopped_by"] for q in quality}),
+            "denoised": any(q.get("denoised", False) for q in quality),
+            "denoised_se_ln": ({k: max(q["denoised_se_ln"][k] for q in quality) for k in quality[0]["denoised_se_ln"]}
+                               if quality[0].get("denoised_se_ln") else None),
+            "render_s": float(sum(q["seconds"] for q in quality))}

@@ -27,7 +27,7 @@ import numpy as np
 
 import gevsim
 from gevsim.errors import ConfigError
-from gevsim.render import rotation
+from gevsim.render import pose_render, rotation
 from gevsim.render.basis_cache import CACHE_VERSION, RenderCache, cache_key
 from gevsim.render.convergence import error_percentiles
 from gevsim.render.manifest_checks import check_rendered
@@ -68,8 +68,6 @@ def _budget(request: dict, started: float, left: int) -> float | None:
 def render_each(scene: MitsubaScene, times: np.ndarray, request: dict, cache: RenderCache,
                 progress: Progress) -> PoseImages:
     """Every pose rendered alone (or read from the cache) to the request."""
-    from gevsim.render import basis
-
     m = scene.manifest
     out = PoseImages([], [], [], [], np.zeros(len(times)))
     started = time.perf_counter()
@@ -82,7 +80,7 @@ def render_each(scene: MitsubaScene, times: np.ndarray, request: dict, cache: Re
             out.quality.append(meta["report"])
         else:
             scene.set_pose(pose)
-            mean, err, se_map, report = basis.render_pose(scene, request,
+            mean, err, se_map, report = pose_render.render_pose(scene, request,
                                                           budget_s=_budget(request, started, len(times) - p))
             check_rendered(mean, source=m.source, t_s=float(t))
             out.seconds[p] = report.seconds
@@ -237,7 +235,7 @@ def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -
     """(images, noise, pixel error map, reused cells) of one pose: each of its pixels' ``g.sub`` x ``g.sub``
     cells reprojected from the window, or rendered anew at the window's density of samples (the window's
     samples per pixel spread over its cells) when it cannot be; a pixel is the mean of its cells."""
-    from gevsim.render import basis, parallax
+    from gevsim.render import parallax
     from gevsim.render.rays import PinholeGrid, focal_px
 
     m, r = scene.manifest, scene.manifest.render
@@ -259,7 +257,7 @@ def _parallax_pose(scene: MitsubaScene, pose, g, window: tuple, request: dict) -
             # The window's density of samples, in 4 batches (a noise sample and 3 degrees of freedom for the
             # reported error; the default 8 or more cost ~70 ms of tracing each for a few thousand cells).
             ask = {**request, "spp": int(report["spp"]), "target_ln": None, "batches": 4}
-        sub_mean, sub_err, sub_se, _ = basis.render_pose(scene, ask, grid=grid, pixels=todo)
+        sub_mean, sub_err, sub_se, _ = pose_render.render_pose(scene, ask, grid=grid, pixels=todo)
         rows, cols = np.divmod(todo, w * s)
         cells[:, rows, cols], cell_noise[:, rows, cols] = sub_mean[:, 0], sub_err[:, 0]
         var[rows, cols] = np.square(sub_se[0].astype(np.float64))
@@ -289,15 +287,13 @@ def cell_targets(var: np.ndarray, ok: np.ndarray, target: float, s: int) -> np.n
 def _window_render(scene, g, key, t_ref, request, cache, budget, out, first) -> tuple:
     """The reference window's (mean, noise, pixel error map, report dict), from the cache or rendered.
     EXR layers share one size: the pixels' error map is stored at cell resolution, each value repeated."""
-    from gevsim.render import basis
-
     m = scene.manifest
     cached = cache.read(key, m.group_names, (g.height, g.width), request)
     if cached is not None:
         mean, err, se_cells, meta = cached
         return mean, err, se_cells[::g.sub, ::g.sub], meta["report"]
     scene.set_pose(scene.pose_at(float(t_ref)))
-    mean, err, se_map, noise_report = basis.render_pose(scene, request, budget_s=budget, grid=g)
+    mean, err, se_map, noise_report = pose_render.render_pose(scene, request, budget_s=budget, grid=g)
     check_rendered(mean, source=m.source, t_s=float(t_ref))
     report = noise_report.as_dict()
     out.seconds[first] += noise_report.seconds

@@ -32,7 +32,7 @@ SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler
 REUSE = ("auto", "none", "rotation", "parallax")
 #: How a noise-target render spends samples (``[render] sampling``): ``"uniform"``, every pixel alike until
 #: the stop rule holds; ``"adaptive"``, after the first batches only pixels whose error is above
-#: :data:`gevsim.render.basis.ADAPTIVE_STOP_FRACTION` x the target (Manabe et al., ICCP 2024, per-pixel tests).
+#: :data:`gevsim.render.pose_render.ADAPTIVE_STOP_FRACTION` x the target (Manabe et al., ICCP 2024, per-pixel tests).
 SAMPLING = ("uniform", "adaptive")
 #: ``noise_target_ln = "auto"``: this fraction of the smallest event threshold. Measured on the office
 #: (128x96, ideal sensor, benchmarks/flicker_convergence.py): at a p99 flicker-metric error of 0.4 x 0.05 ln

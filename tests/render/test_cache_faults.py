@@ -76,7 +76,7 @@ def test_a_read_only_cache_is_read_and_the_run_goes_on_without_writing(tmp_path,
             def refuse(*args, **kwargs):
                 raise PermissionError(13, "Permission denied", str(cache))
 
-            monkeypatch.setattr("gevsim.io.atomic.tempfile.mkstemp", refuse)
+            monkeypatch.setattr("gevsim.io.staging.tempfile.mkstemp", refuse)
         assert (render_basis(scene, cache_dir=cache).render_s == 0).all()  # hits are still read
         for f in cache.glob("*.exr"):
             os.chmod(cache, 0o755)
