@@ -11,7 +11,8 @@ omitted: keep each scene's own), ``frequency_hz`` (log-uniform, pwm/sinusoid),
 
 Sequence ``i`` draws everything from ``default_rng(SeedSequence([seed, i]))``, in
 this order: scene, sensor, then for **every** light group of the scene (in
-manifest order) a waveform type, its parameters and a uniform phase, then the
+manifest order) a waveform type, a uniform phase and what that type draws
+(:meth:`gevsim.illumination.base.Waveform.drawn`), then the
 light scale, then the emulation seed. So any subset of sequences, in any order,
 on any executor, gives identical shards.
 
@@ -44,14 +45,14 @@ from pathlib import Path
 import numpy as np
 
 from gevsim import __version__
-from gevsim import _portable as pm
 from gevsim._validate import FieldError, real_list
 from gevsim.config import TomlReader, read_toml
 from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.experiments.executors import run_all
-from gevsim.illumination.base import MAX_FREQUENCY_HZ
+from gevsim.illumination.base import MAX_FREQUENCY_HZ, log_uniform
+from gevsim.illumination.spec import RANDOM_WAVEFORMS, random_spec
 from gevsim.io import EventReader, atomic_write_text, exclusive, sweep_stale
 from gevsim.io.evreal import MIN_EVENTS, export_evreal_from
 from gevsim.render.quality import check_render_overrides
@@ -62,8 +63,6 @@ log = logging.getLogger(__name__)
 
 KEYS = ("sequences", "seed", "scenes", "sensors", "emulators", "duration_s", "step_s", "chunk_steps",
         "frame_rate_hz", "evreal", "render", "randomize")
-RANDOM_WAVEFORMS = ("dc", "pwm", "sinusoid", "fluorescent", "incandescent", "sodium_hid")
-MAINS = ("fluorescent", "incandescent", "sodium_hid")
 
 
 @dataclass(frozen=True)
@@ -177,17 +176,11 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
 
 
 def _waveform(rng: np.random.Generator, rz: Randomize) -> dict:
+    """One light group's random waveform: its type, a phase, then what the type draws
+    (:meth:`gevsim.illumination.base.Waveform.drawn`), in this order."""
     kind = rz.waveforms[int(rng.integers(len(rz.waveforms)))]
     phase = float(rng.uniform(0.0, 2.0 * math.pi))
-    if kind in MAINS:
-        return {"type": kind, "mains_hz": float(rz.mains_hz[int(rng.integers(len(rz.mains_hz)))]), "phase_rad": phase}
-    if kind == "dc":
-        return {"type": "dc"}
-    f = float(pm.exp(rng.uniform(*pm.log(rz.frequency_hz))))  # log-uniform
-    if kind == "pwm":
-        return {"type": "pwm", "frequency_hz": f, "duty": float(rng.uniform(*rz.duty)),
-                "phase_s": phase / (2.0 * math.pi * f)}
-    return {"type": "sinusoid", "frequency_hz": f, "modulation": float(rng.uniform(*rz.modulation)), "phase_rad": phase}
+    return random_spec(kind, rng, rz, phase_rad=phase)
 
 
 @functools.lru_cache(maxsize=64)
@@ -206,7 +199,7 @@ def sequence_parameters(config: DatasetConfig, index: int) -> dict:
     sensor = config.sensors[int(rng.integers(len(config.sensors)))]
     groups = _group_names(scene) if config.randomize.waveforms else ()
     waveforms = {g: _waveform(rng, config.randomize) for g in groups}
-    light_scale = float(pm.exp(rng.uniform(*pm.log(config.randomize.light_scale))))
+    light_scale = log_uniform(rng, config.randomize.light_scale)
     return {"index": index, "scene": scene, "sensor": sensor, "waveforms": waveforms, "light_scale": light_scale,
             "seed": int(rng.integers(2**31))}
 

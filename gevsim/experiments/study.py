@@ -73,6 +73,7 @@ from gevsim.emulation.emulators import EMULATORS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.illumination.base import MAX_FREQUENCY_HZ
+from gevsim.illumination.spec import SWEPT_WAVEFORMS, swept_spec
 from gevsim.pixel import load_preset
 from gevsim.render.manifest import check_render_overrides
 from gevsim.resources import MAX_REPEATS, MAX_STUDY_RUNS, at_most
@@ -89,7 +90,10 @@ AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicke
 STUDY_TIME = TimeGrid(duration_s=0.02, step_s=2e-5, frame_rate_hz=500.0)
 #: Repeats (noise seeds) per run when ``[study] repeats`` is not given.
 DEFAULT_REPEATS = 3
-WAVEFORMS = ("native", "pwm", "sinusoid", "fluorescent", "sodium_hid", "incandescent", "dc")
+#: The sweep's waveform choice that keeps the scene's own lamp.
+NATIVE = "native"
+#: The sweep's waveform choices: the scene's own, or a lamp type of the registry that studies sweep.
+WAVEFORMS = (NATIVE, *SWEPT_WAVEFORMS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,21 +274,12 @@ def flicker_group(study: Study, scene: str) -> str:
 
 
 def waveform_spec(params: dict) -> dict | None:
-    """The flickering group's waveform table for a run's parameters (None: the scene's own)."""
-    kind = params.get("waveform", "native")
-    if kind == "native":
+    """The flickering group's waveform table for a run's parameters (None: the scene's own); the lamp type
+    makes it from the swept light frequency (:meth:`gevsim.illumination.base.Waveform.swept`)."""
+    kind = params.get("waveform", NATIVE)
+    if kind == NATIVE:
         return None
-    f = float(params.get("frequency_hz", 100.0))
-    if kind == "pwm":
-        return {"type": "pwm", "frequency_hz": f, "duty": float(params.get("duty", 0.5))}
-    if kind == "sinusoid":
-        return {"type": "sinusoid", "frequency_hz": f, "modulation": float(params.get("modulation", 1.0))}
-    if kind == "fluorescent":  # light flickers at twice the mains frequency
-        spec = {"type": "fluorescent", "mains_hz": f / 2}
-        return {**spec, "modulation": float(params["modulation"])} if "modulation" in params else spec
-    if kind in ("sodium_hid", "incandescent"):
-        return {"type": kind, "mains_hz": f / 2}
-    return {"type": "dc"}
+    return swept_spec(kind, float(params.get("frequency_hz", 100.0)), params)
 
 
 def run_scene(study: Study, params: dict) -> str:

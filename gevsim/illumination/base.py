@@ -8,14 +8,17 @@ period (or over its table span when it is not periodic).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 
+from gevsim import _portable as pm
 from gevsim import _validate
 from gevsim.config import FieldError  # noqa: F401  (re-exported for the waveform modules)
 
-__all__ = ["MAX_FREQUENCY_HZ", "Waveform"]
+__all__ = ["DC", "MAX_FREQUENCY_HZ", "RandomRanges", "Waveform", "log_uniform"]
 
 #: The fastest lamp modulation (PWM, sinusoid) or mains frequency: 10 MHz, above any LED driver's switching
 #: (hundreds of kHz to a few MHz) and far above a pixel's bandwidth (kHz). Each PWM period adds four sub-steps
@@ -34,6 +37,25 @@ def real(obj: Any, name: str, **bounds: Any) -> float:
 def as_time(t: Any) -> np.ndarray:
     """Return ``t`` as a float64 array (seconds)."""
     return np.asarray(t, dtype=np.float64)
+
+
+class RandomRanges(Protocol):
+    """What a random lamp is drawn from (a dataset's ``[dataset.randomize]``:
+    :class:`gevsim.experiments.dataset.Randomize`): ``(low, high)`` pairs and the mains frequencies."""
+
+    @property
+    def frequency_hz(self) -> tuple[float, float]: ...  # log-uniform
+    @property
+    def duty(self) -> tuple[float, float]: ...
+    @property
+    def modulation(self) -> tuple[float, float]: ...
+    @property
+    def mains_hz(self) -> tuple[float, ...]: ...  # one of these
+
+
+def log_uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
+    """One draw, uniform in the logarithm between ``bounds`` (one ``rng.uniform`` call)."""
+    return float(pm.exp(rng.uniform(*pm.log(bounds))))
 
 
 class Waveform(ABC):
@@ -102,9 +124,49 @@ class Waveform(ABC):
 
     def constant(self) -> Waveform:
         """The DC waveform of the same mean, for counterfactual no-flicker runs."""
-        from .basic import DC
-
         return DC()
+
+    # How studies and datasets make specs of a lamp type (the fields of its config table, without
+    # ``type``). A type that does not override one is not offered there
+    # (:data:`gevsim.illumination.spec.SWEPT_WAVEFORMS`, :data:`~gevsim.illumination.spec.RANDOM_WAVEFORMS`).
+
+    @classmethod
+    def swept(cls, frequency_hz: float, params: Mapping[str, Any]) -> dict[str, Any]:
+        """The spec fields of this lamp in a study run whose light flickers at ``frequency_hz``;
+        ``params`` are the run's other sweep values (``duty``, ``modulation``)."""
+        raise NotImplementedError(f"{cls.__name__} is not swept by studies")
+
+    @classmethod
+    def drawn(cls, rng: np.random.Generator, ranges: RandomRanges, *, phase_rad: float) -> dict[str, Any]:
+        """The spec fields of a random lamp of this type drawn with ``rng`` from ``ranges`` (a dataset's
+        sequence; ``phase_rad`` already drawn). The draws' order is part of every dataset's numbers."""
+        raise NotImplementedError(f"{cls.__name__} is not drawn by datasets")
+
+
+@dataclass(frozen=True)
+class DC(Waveform):
+    """Steady light, ``w(t) = 1``."""
+
+    def __call__(self, t: Any) -> np.ndarray:
+        return np.ones_like(as_time(t))
+
+    @property
+    def period_s(self) -> None:
+        return None
+
+    def cumulative(self, t: Any) -> np.ndarray:
+        return as_time(t).copy()
+
+    def value_range(self) -> tuple[float, float]:
+        return (1.0, 1.0)
+
+    @classmethod
+    def swept(cls, frequency_hz: float, params: Mapping[str, Any]) -> dict[str, Any]:
+        return {}
+
+    @classmethod
+    def drawn(cls, rng: np.random.Generator, ranges: RandomRanges, *, phase_rad: float) -> dict[str, Any]:
+        return {}
 
 
 class PeriodicWaveform(Waveform):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -11,27 +12,19 @@ import numpy as np
 
 from gevsim import _portable as pm
 
-from .base import MAX_FREQUENCY_HZ, FieldError, PeriodicWaveform, PiecewiseLinear, Waveform, as_time, real
+from .base import (
+    DC,
+    MAX_FREQUENCY_HZ,
+    FieldError,
+    PeriodicWaveform,
+    PiecewiseLinear,
+    RandomRanges,
+    as_time,
+    log_uniform,
+    real,
+)
 
-__all__ = ["DC", "Sinusoid", "PWM"]
-
-
-@dataclass(frozen=True)
-class DC(Waveform):
-    """Steady light, ``w(t) = 1``."""
-
-    def __call__(self, t: Any) -> np.ndarray:
-        return np.ones_like(as_time(t))
-
-    @property
-    def period_s(self) -> None:
-        return None
-
-    def cumulative(self, t: Any) -> np.ndarray:
-        return as_time(t).copy()
-
-    def value_range(self) -> tuple[float, float]:
-        return (1.0, 1.0)
+__all__ = ["DC", "Sinusoid", "PWM"]  # DC lives beside Waveform (Waveform.constant makes one)
 
 
 @dataclass(frozen=True)
@@ -76,6 +69,15 @@ class Sinusoid(PeriodicWaveform):
 
     def value_range(self) -> tuple[float, float]:
         return (1.0 - self.modulation, 1.0 + self.modulation)
+
+    @classmethod
+    def swept(cls, frequency_hz: float, params: Mapping[str, Any]) -> dict[str, Any]:
+        return {"frequency_hz": frequency_hz, "modulation": float(params.get("modulation", 1.0))}
+
+    @classmethod
+    def drawn(cls, rng: np.random.Generator, ranges: RandomRanges, *, phase_rad: float) -> dict[str, Any]:
+        f = log_uniform(rng, ranges.frequency_hz)
+        return {"frequency_hz": f, "modulation": float(rng.uniform(*ranges.modulation)), "phase_rad": phase_rad}
 
 
 @dataclass(frozen=True)
@@ -162,3 +164,13 @@ class PWM(PeriodicWaveform):
 
     def value_range(self) -> tuple[float, float]:
         return self._shape.value_range()
+
+    @classmethod
+    def swept(cls, frequency_hz: float, params: Mapping[str, Any]) -> dict[str, Any]:
+        return {"frequency_hz": frequency_hz, "duty": float(params.get("duty", 0.5))}
+
+    @classmethod
+    def drawn(cls, rng: np.random.Generator, ranges: RandomRanges, *, phase_rad: float) -> dict[str, Any]:
+        f = log_uniform(rng, ranges.frequency_hz)
+        duty = float(rng.uniform(*ranges.duty))
+        return {"frequency_hz": f, "duty": duty, "phase_s": phase_rad / (2.0 * math.pi * f)}

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -25,7 +26,7 @@ import numpy as np
 
 from gevsim import _portable as pm
 
-from .base import MAX_FREQUENCY_HZ, FieldError, Waveform, real
+from .base import MAX_FREQUENCY_HZ, FieldError, RandomRanges, Waveform, real
 from .basic import Sinusoid
 from .table import Table
 
@@ -78,6 +79,15 @@ class MainsLamp(Waveform):
     def value_range(self) -> tuple[float, float] | None:
         return self._inner.value_range()
 
+    @classmethod
+    def swept(cls, frequency_hz: float, params: Mapping[str, Any]) -> dict[str, Any]:
+        """The light flickers at twice the mains frequency."""
+        return {"mains_hz": frequency_hz / 2}
+
+    @classmethod
+    def drawn(cls, rng: np.random.Generator, ranges: RandomRanges, *, phase_rad: float) -> dict[str, Any]:
+        return {"mains_hz": float(ranges.mains_hz[int(rng.integers(len(ranges.mains_hz)))]), "phase_rad": phase_rad}
+
 
 class _FirstOrderLamp(MainsLamp):
     @property
@@ -119,6 +129,11 @@ class Fluorescent(_FirstOrderLamp):
             real(self, "persistence_s", low=0.0)
         if self.modulation is not None:
             real(self, "modulation", low=0.0, high=1.0)
+
+    @classmethod
+    def swept(cls, frequency_hz: float, params: Mapping[str, Any]) -> dict[str, Any]:
+        spec = super().swept(frequency_hz, params)
+        return {**spec, "modulation": float(params["modulation"])} if "modulation" in params else spec
 
     @property
     def depth(self) -> float:

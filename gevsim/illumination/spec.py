@@ -1,4 +1,11 @@
-"""Registry of waveform types and the factory that builds one from a config table."""
+"""Registry of waveform types and the factory that builds one from a config table.
+
+A lamp type is its module (a frozen dataclass :class:`~gevsim.illumination.base.Waveform` whose
+fields are its config keys, checked in ``__post_init__``) plus one entry in :data:`WAVEFORMS`.
+Studies sweep the types that define :meth:`~gevsim.illumination.base.Waveform.swept` and datasets
+draw those that define :meth:`~gevsim.illumination.base.Waveform.drawn` (:data:`SWEPT_WAVEFORMS`,
+:data:`RANDOM_WAVEFORMS`).
+"""
 
 from __future__ import annotations
 
@@ -6,13 +13,15 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
+
 from ..errors import ConfigError, check_keys, suggest
-from .base import FieldError, Waveform
-from .basic import DC, PWM, Sinusoid
+from .base import DC, FieldError, RandomRanges, Waveform
+from .basic import PWM, Sinusoid
 from .mains import Fluorescent, Incandescent, SodiumHID
 from .table import Table
 
-__all__ = ["WAVEFORMS", "from_spec"]
+__all__ = ["RANDOM_WAVEFORMS", "SWEPT_WAVEFORMS", "WAVEFORMS", "from_spec", "random_spec", "swept_spec"]
 
 #: Waveform classes by the ``type`` name used in config files.
 WAVEFORMS: dict[str, type[Waveform]] = {
@@ -24,6 +33,28 @@ WAVEFORMS: dict[str, type[Waveform]] = {
     "sodium_hid": SodiumHID,
     "table": Table,
 }
+
+
+def _defines(cls: type[Waveform], method: str) -> bool:
+    return getattr(cls, method).__func__ is not getattr(Waveform, method).__func__
+
+
+#: The types a study sweeps (the registry's order).
+SWEPT_WAVEFORMS: tuple[str, ...] = tuple(name for name, cls in WAVEFORMS.items() if _defines(cls, "swept"))
+#: The types a dataset draws from (the registry's order).
+RANDOM_WAVEFORMS: tuple[str, ...] = tuple(name for name, cls in WAVEFORMS.items() if _defines(cls, "drawn"))
+
+
+def swept_spec(name: str, frequency_hz: float, params: Mapping[str, Any]) -> dict[str, Any]:
+    """The config table of lamp type ``name`` (one of :data:`SWEPT_WAVEFORMS`) whose light flickers at
+    ``frequency_hz`` in a study run with sweep values ``params`` (:meth:`Waveform.swept`)."""
+    return {"type": name, **WAVEFORMS[name].swept(frequency_hz, params)}
+
+
+def random_spec(name: str, rng: np.random.Generator, ranges: RandomRanges, *, phase_rad: float) -> dict[str, Any]:
+    """A random config table of lamp type ``name`` (one of :data:`RANDOM_WAVEFORMS`) drawn with ``rng``
+    from ``ranges`` (:meth:`Waveform.drawn`)."""
+    return {"type": name, **WAVEFORMS[name].drawn(rng, ranges, phase_rad=phase_rad)}
 
 
 def from_spec(spec: Mapping[str, Any], *, source: str | None = None, key: str = "waveform") -> Waveform:
