@@ -33,18 +33,19 @@ from gevsim.emulation.emulators import (
     SEED_SLOTS,
     make_emulator,
 )
+from gevsim.emulation.photocurrent import Setup, photocurrent_at
 from gevsim.emulation.summary import RunSummary
 from gevsim.emulation.truth import write_frames
 from gevsim.errors import ConfigError, suggest
 from gevsim.events.readout import Readout, chip_share, log_readouts
-from gevsim.illumination import from_spec, mix_poses, weights_at
+from gevsim.illumination import from_spec, weights_at
 from gevsim.io import EventWriter
 from gevsim.optics import Pixel, cos4_map, group_photocurrent_factors, lamp_spectrum, luminance
 from gevsim.optics.photometry import K_M_LM_PER_W
 from gevsim.pixel import ApsSensor, Photoreceptor, load_preset
 from gevsim.pixel.noise import dark_current_a
-from gevsim.pixel.presets import SensorPreset, with_overrides
-from gevsim.render import MitsubaScene, SceneManifest, VariantChoice, load, override, render_basis
+from gevsim.pixel.presets import with_overrides
+from gevsim.render import MitsubaScene, load, override, render_basis
 from gevsim.render.scene_config import resolved_config, scene_optics
 from gevsim.resources import check_emulation
 
@@ -52,23 +53,6 @@ log = logging.getLogger(__name__)
 #: ``progress(done, total)``, called as work completes.
 Progress = Callable[[int, int], None]
 DEFAULT_SPECTRUM = "D65"  # for light groups given as RGB radiance without a lamp spectrum
-
-
-@dataclasses.dataclass
-class Setup:
-    """Everything a run needs before its time loop."""
-
-    manifest: SceneManifest
-    preset: SensorPreset
-    basis_times_s: np.ndarray
-    current_basis: np.ndarray  # (P, K, H, W) photocurrent per unit waveform, A
-    waveforms: tuple
-    duration_s: float
-    variant: VariantChoice
-    current_noise: np.ndarray | None = None  # (P, K, H, W): the render's error sample in photocurrent
-    render_quality: dict = dataclasses.field(default_factory=dict)  # achieved render noise (summarize_quality)
-    chip_lux_per_a: np.ndarray | None = None  # (K,): illuminance on the chip per ampere of each group's photocurrent
-    scene: MitsubaScene | None = None  # for the geometric ground truth (depth, flow, poses) at frame times
 
 
 def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = None,
@@ -152,12 +136,6 @@ def render_noise_floor(setup: Setup, *, frequency_hz: float) -> Setup:
     d = 0.5 * setup.current_noise / np.sqrt(2.0)
     basis = np.concatenate([half + d, half - d], axis=1)
     return dataclasses.replace(setup, current_basis=basis, waveforms=(a,) * k + (b,) * k, current_noise=None)
-
-
-def photocurrent_at(setup: Setup, t_s: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Photocurrent (T, H, W) for waveform weights (T, K) at times t_s: E(t) of
-    :func:`~gevsim.illumination.mix_poses` on the photocurrent basis."""
-    return mix_poses(setup.current_basis, setup.basis_times_s, t_s, weights)
 
 
 def check_frames_fit(config: EmulationConfig, out: str | os.PathLike, *, width: int, height: int,

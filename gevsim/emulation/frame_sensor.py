@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from gevsim._validate import real
-from gevsim.emulation.driver import Setup
+from gevsim.emulation.photocurrent import Setup
 from gevsim.illumination import from_spec
 from gevsim.optics import Lens, Pixel, group_photocurrent_factors, lamp_spectrum
 from gevsim.optics.photometry import K_M_LM_PER_W
@@ -47,7 +47,7 @@ def amperes_per_lux(preset: SensorPreset, spectrum: str = "D65") -> float:
 
 def frame_setup(frames: np.ndarray, t_s: np.ndarray, *, preset: SensorPreset, illuminance_lux: float,
                 source: str | os.PathLike, spectrum: str = "D65") -> Setup:
-    """A driver :class:`~gevsim.emulation.driver.Setup` whose light is the frames (F, H, W) in [0, 1]
+    """A driver :class:`~gevsim.emulation.photocurrent.Setup` whose light is the frames (F, H, W) in [0, 1]
     (sRGB-encoded gray) at times ``t_s``, value 1 being ``illuminance_lux`` on the chip."""
     lux = real(illuminance_lux, "--illuminance-lux", low=0.0, low_open=True, high=MAX_CHIP_LUX)
     frames = np.asarray(frames, np.float64)

@@ -11,11 +11,12 @@ from scipy.constants import elementary_charge
 
 from gevsim import _portable as pm
 from gevsim.emulation import layout
+from gevsim.emulation.photocurrent import photocurrent_at
 from gevsim.illumination import weights_at
 
 if TYPE_CHECKING:
     from gevsim.emulation.config import EmulationConfig
-    from gevsim.emulation.driver import Setup
+    from gevsim.emulation.photocurrent import Setup
     from gevsim.io import EventWriter
     from gevsim.pixel import ApsSensor
     from gevsim.render.scene import MitsubaScene
@@ -25,8 +26,6 @@ def write_frames(wr: EventWriter, setup: Setup, frame_t: np.ndarray, dark: Any, 
                  aps_rng: np.random.Generator | None, config: EmulationConfig) -> None:
     """Ground truth: noise-free log photocurrent (with and without flicker), APS frames, and the
     scene's geometry at each frame time (when the setup holds its scene)."""
-    from gevsim.emulation.driver import photocurrent_at
-
     mean = tuple(wf.constant() for wf in setup.waveforms)
     for t in frame_t:
         wt = weights_at(setup.waveforms, np.array([t]))
