@@ -13,18 +13,16 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from gevsim import _resources
 from gevsim.errors import ConfigError
 
-if TYPE_CHECKING:
-    from gevsim.emulation.config import EmulationConfig
-
-__all__ = ["MAX_REPEATS", "MAX_SEQUENCES", "MAX_SPP", "MAX_STUDY_RUNS", "at_most", "check_emulation", "check_export",
-           "check_frame_memory", "check_frame_times", "check_render_frames", "check_writable", "fits_disk",
-           "fits_memory"]
+__all__ = ["MAX_REPEATS", "MAX_SEQUENCES", "MAX_SPP", "MAX_STUDY_RUNS", "EmulationRequest", "at_most",
+           "check_emulation", "check_export", "check_frame_memory", "check_frame_times", "check_render_frames",
+           "check_writable", "fits_disk", "fits_memory"]
 
 #: The most runs one study sweeps (the product of its axes' lengths); each is an emulation of seconds.
 MAX_STUDY_RUNS = 10_000
@@ -48,6 +46,23 @@ FRAME_PX_BYTES = 32
 #: An AEDAT4 event takes at most 16 bytes (dv-processing's packed event), and LZ4 adds at most 1 % to
 #: data it cannot compress; 64 KiB more for the header and index.
 AEDAT4_EVENT_BYTES = 16
+
+
+class EmulationRequest(Protocol):
+    """What :func:`check_emulation` reads of a run's config (an ``EmulationConfig`` has it): the
+    time step, the steps of a chunk, the emulators and where the config came from."""
+
+    @property
+    def step_s(self) -> float: ...
+
+    @property
+    def chunk_steps(self) -> int: ...
+
+    @property
+    def emulators(self) -> Sequence[str]: ...
+
+    @property
+    def source(self) -> str | None: ...
 
 
 def fits_memory(need: float, *, what: str, source: str | None, key: str | None, hint: str = "") -> None:
@@ -90,9 +105,9 @@ def check_writable(out: str | os.PathLike, *, inside: bool = False) -> None:
             from None
 
 
-def check_emulation(config: EmulationConfig, *, width: int, height: int, duration_s: float,
+def check_emulation(config: EmulationRequest, *, width: int, height: int, duration_s: float,
                     substeps: int = 1) -> None:
-    """Memory of an emulation of ``config`` (an EmulationConfig) at ``width`` x ``height`` px: one chunk
+    """Memory of an emulation of ``config`` (an :class:`EmulationRequest`) at ``width`` x ``height`` px: one chunk
     (``chunk_steps``) and the whole run's time grid and millisecond index (the duration and ``step_s``),
     each step split into ``substeps`` (known once the basis is rendered: the sensor's fastest noise path)."""
     steps = duration_s / config.step_s * substeps

@@ -5,9 +5,18 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from gevsim.cli._common import _progress
 from gevsim.errors import ConfigError
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    import numpy as np
+
+    from gevsim.render.basis import BasisSet
+    from gevsim.render.output import FramePlots
 
 
 def cmd_render(args: argparse.Namespace) -> int:
@@ -47,7 +56,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         close()
     rendered = int((basis.render_s > 0).sum())
     info = write_render(args.out, manifest, basis, variant=scene.variant, frame_rate_hz=args.frames,
-                        exposure_s=args.exposure, plots=args.plots)
+                        exposure_s=args.exposure, plots=_plots(manifest.name) if args.plots else None)
     per = basis.render_s[basis.render_s > 0]
     timing = f", {per.mean():.2f} s per render" if per.size else ""
     q = basis.noise_summary()
@@ -60,3 +69,14 @@ def cmd_render(args: argparse.Namespace) -> int:
           f"{len(info.get('frames', {}).get('t_s', []))} frames; wrote {args.out} "
           f"in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     return 0
+
+
+def _plots(title: str) -> FramePlots:
+    """What ``--plots`` draws into a render's folder: a contact sheet of the frames and the lamps' waveforms."""
+    from gevsim import plots as plotting
+
+    def draw(folder: Path, basis: BasisSet, frames: np.ndarray, times_s: list, mean_lux: np.ndarray) -> None:
+        plotting.contact_sheet(frames, times_s, folder / "contact_sheet.png", title=title)
+        plotting.waveform_plot(basis, times_s, mean_lux, folder / "waveform.png", title=title)
+
+    return draw

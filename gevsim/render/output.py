@@ -1,5 +1,6 @@
 """Write a rendered scene to a folder: basis EXRs, the mixed irradiance
-sequence, a JSON manifest, and (optionally) PNG plots.
+sequence, a JSON manifest, and (optionally) what a caller draws of the sequence
+(the CLI's PNG plots: this module draws nothing).
 
 Everything is written into a staged folder that replaces the target at the
 end (:func:`gevsim.io.atomic_dir`), so a failed or interrupted run leaves no
@@ -11,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -25,6 +27,10 @@ from gevsim.render.basis import BasisSet
 from gevsim.render.manifest import SceneManifest
 from gevsim.render.scene_config import resolved_config, scene_optics
 
+#: ``plots(folder, basis, frames, times_s, mean_lux)``: draws the irradiance frames (T, H, W, C) at ``times_s``
+#: and their mean illuminance (T,) into the staged output folder (so they are part of the output).
+FramePlots = Callable[[Path, BasisSet, np.ndarray, list, np.ndarray], None]
+
 
 def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s: ArrayLike, *, lens: Lens,
                       exposure_s: float | None = None, flicker: bool = True) -> np.ndarray:
@@ -36,9 +42,10 @@ def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s: ArrayLi
 
 
 def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSet, *, variant: VariantChoice,
-                 frame_rate_hz: float | None = None, exposure_s: float | None = None, plots: bool = False,
-                 progress: Callable[[int, int], None] | None = None) -> dict:
-    """Write basis images, optional frames and plots, and ``manifest.json`` to ``out``."""
+                 frame_rate_hz: float | None = None, exposure_s: float | None = None,
+                 plots: FramePlots | None = None, progress: Callable[[int, int], None] | None = None) -> dict:
+    """Write basis images, optional frames, and ``manifest.json`` to ``out``; ``plots`` (with frames) draws
+    the frames into the output (:data:`FramePlots`)."""
     lens, pixel = scene_optics(manifest)
     r = manifest.render
     info = {
@@ -97,11 +104,7 @@ def write_render(out: str | os.PathLike, manifest: SceneManifest, basis: BasisSe
                 write_exr(stage / "frames" / f"frame_{i:05d}.exr", frames[i], metadata={"t_s": float(t)})
                 if progress:
                     progress(i + 1, len(times))
-            if plots:
-                from gevsim import plots as plotting
-
-                plotting.contact_sheet(frames, times.tolist(), stage / "contact_sheet.png", title=manifest.name)
-                plotting.waveform_plot(basis, times.tolist(), lux.reshape(len(times), -1).mean(axis=1),
-                                       stage / "waveform.png", title=manifest.name)
+            if plots is not None:
+                plots(stage, basis, frames, times.tolist(), lux.reshape(len(times), -1).mean(axis=1))
         (stage / MANIFEST).write_text(json.dumps(info, indent=2))
     return info
