@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from gevsim.cli._common import (
     _executor_options,
@@ -36,10 +37,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser = add_parser  # type: ignore[method-assign]
 
+    for add in (_listings, _render, _emulate, _reconstruct, _export, _view, _dataset, _validate, _study):
+        add(sub)
+    return parser
+
+
+def _listings(sub: Any) -> None:
+    """The listing commands: info, scenes, presets."""
     sub.add_parser("info", help="versions, Mitsuba variant and why, libLLVM, threads")
     sub.add_parser("scenes", help="list the built-in scenes")
     sub.add_parser("presets", help="list the sensor presets and their main parameters")
 
+
+def _render(sub: Any) -> None:
+    """``gevsim render``."""
     r = sub.add_parser("render", help="render a scene's light-group basis images (and an irradiance sequence)")
     r.add_argument("scene", help="a built-in scene name (see `gevsim scenes`) or a manifest .toml")
     r.add_argument("--out", required=True, help="output folder: missing, empty or an earlier render (replaced "
@@ -63,6 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=float, metavar="S", help="sequence duration in seconds")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
+
+def _emulate(sub: Any) -> None:
+    """``gevsim emulate``."""
     e = sub.add_parser("emulate", help="emulate events: a scene (CONFIG.toml) or a frame sequence")
     e.add_argument("config", nargs="?", help="emulation config (keys: docs/config.md)")
     e.add_argument("--out", required=True, help="output HDF5 file (written atomically; replaces only an earlier "
@@ -92,6 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--cache", metavar="DIR", help="basis image cache")
     e.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
 
+
+def _reconstruct(sub: Any) -> None:
+    """``gevsim reconstruct``."""
     c = sub.add_parser("reconstruct", help="reconstruct frames from an emulation file and score them")
     c.add_argument("file", help="an HDF5 file written by `gevsim emulate`")
     c.add_argument("--method", action="append", required=True,
@@ -109,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--bits-per-event", type=_non_negative, default=32.0, help="for the bandwidth column (default 32)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
+
+def _export(sub: Any) -> None:
+    """``gevsim export``."""
     x = sub.add_parser("export", help="write an emulation file's events in the formats other tools read")
     x.add_argument("file", help="an emulation file (.h5)")
     x.add_argument("--format", choices=("aedat4", "text", "npz", "evreal"), required=True,
@@ -120,6 +140,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "only an earlier gevsim export of that format, never the input)")
     x.add_argument("--stream", action="append", metavar="NAME", help="streams to export (default: all)")
 
+
+def _view(sub: Any) -> None:
+    """``gevsim view``."""
     v = sub.add_parser("view", help="draw an emulation file's events as pictures beside the ground truth "
                        "(.png strip, .gif or .mp4 animation)")
     v.add_argument("file", help="an emulation file (.h5)")
@@ -130,6 +153,9 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--streams", action="append", metavar="NAMES", help="streams to draw (default: all)")
     v.add_argument("--fps", type=float, default=10.0, help="animation frames per second (default 10)")
 
+
+def _dataset(sub: Any) -> None:
+    """``gevsim dataset``."""
     d = sub.add_parser("dataset", help="generate many randomised sequences (shards, EVREAL folders), resumable")
     d.add_argument("config", help="dataset config (keys: docs/config.md)")
     d.add_argument("--out", required=True, help="output folder (missing, empty or an earlier dataset); finished "
@@ -139,6 +165,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--cache", metavar="DIR", help="basis image cache (shared by the workers)")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
+
+def _validate(sub: Any) -> None:
+    """``gevsim validate``."""
     v = sub.add_parser("validate", help="check sensor presets against published measurements (background activity, "
                        "bandwidth, latency, mismatch, readout) and against themselves (halved step, shifted start); "
                        "writes a report with plots and a pass/fail table")
@@ -150,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--quick", action="store_true",
                    help="smaller, shorter runs (16x16 px, 3 s per point): wider intervals")
 
+
+def _study(sub: Any) -> None:
+    """``gevsim study``."""
     s = sub.add_parser("study", help="run (or resume) a study: sweeps with repeats and counterfactuals, intervals, "
                                      "plots and a report")
     s.add_argument("config", help="a study config (experiments/*.toml; keys: docs/config.md)")
@@ -162,4 +194,3 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cache", metavar="DIR", help="basis image cache (default with workers: OUT/render-cache)")
     s.add_argument("--keep-files", action="store_true", help="keep every run's HDF5 files")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    return parser
