@@ -104,7 +104,8 @@ def _release(reset_sigma, key, p, count):
 @njit(parallel=True, nogil=True, cache=True)
 def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_off, leak, leak_light, refractory,
                reset_sigma, key, px_x, px_y, buf_t, buf_x, buf_y, buf_p, region, order):
-    """DVS: per pixel a memorised level ``ref``; an ON (OFF) event when the signal
+    """(Over 80 lines: one compiled loop over blocks and steps, so that a block's state stays in cache.)
+    DVS: per pixel a memorised level ``ref``; an ON (OFF) event when the signal
     rises (falls) by th_on (th_off) from it, at the linearly interpolated crossing
     time. The change amplifier is then held in reset for ``refractory`` seconds: the
     level follows the signal and changes during that time are forgotten (Lichtsteiner,
@@ -260,7 +261,8 @@ def _gradient_row(here, there, step_x, n, theta, offset, tern, hysteresis, rc, g
 @njit(parallel=True, nogil=True, cache=True)
 def gradient(v, t_start, t_end, us_end, g_prev, tern, theta, offset, hysteresis, rc, interpolate, table,
              buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
-    """Gradient events (Lehtonen et al.): for each comparator (axis a, pixel y, x)
+    """(Over 80 lines: one compiled loop over rows and steps, so that a row's state stays in cache.)
+    Gradient events (Lehtonen et al.): for each comparator (axis a, pixel y, x)
     G_X = v[y, x+1] - v[y, x], G_Y = v[y+1, x] - v[y, x] (with resolution
     compression ``rc`` the mean over the pair starting at even x resp. even y,
     one comparator per pair); ternary state T = sgn(G) if |G| >= theta else 0;
