@@ -233,8 +233,8 @@ def _ou_row(state, out, z, alpha, scale):
 @njit(parallel=True, nogil=True, cache=True)
 def photoreceptor(current, dt, gain, dark, v1, v2, fn, fn_hz, fn_var, key, step0,
                   fc_ref, i_ref, fc_max, f2, shot_q, amp, n_read, out):
-    """Advance the photoreceptor over T steps of held photocurrent. (One function over 80 lines: one
-    compiled loop over blocks and steps, so that no state leaves the CPU caches between stages.)
+    """Advance the photoreceptor over T steps of held photocurrent. (Over 80 lines: one compiled loop
+    over blocks and steps, so that no state leaves the CPU caches between stages.)
 
     The noise arguments are the sums of :func:`gevsim.pixel.mechanisms.kernel_noise` (shot_q, amp,
     fn_hz, fn_var, n_read); the random streams are the named ``STREAM_*`` of
