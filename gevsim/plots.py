@@ -13,7 +13,7 @@ import numpy as np
 
 from gevsim.errors import MissingExtraError
 from gevsim.io import atomic_path
-from gevsim.reconstruct.tonemap import ToneMap
+from gevsim.tonemap import ToneMap
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

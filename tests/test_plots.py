@@ -27,7 +27,7 @@ def test_the_contact_sheet_has_a_scale_in_lux(tmp_path):
     import matplotlib.pyplot as plt
 
     from gevsim.plots import _lux_scale, contact_sheet
-    from gevsim.reconstruct.tonemap import ToneMap
+    from gevsim.tonemap import ToneMap
 
     frames = np.exp(np.linspace(-6, 0, 4 * 6 * 8)).reshape(4, 6, 8, 1)  # W/m^2, photopic-equivalent
     contact_sheet(frames, [0.0, 1e-3, 2e-3, 3e-3], tmp_path / "sheet.png", title="t")

@@ -15,7 +15,7 @@ import numpy as np
 import gevsim
 from gevsim.io import MANIFEST, atomic_dir
 from gevsim.io.ownership import check_name
-from gevsim.reconstruct.tonemap import ToneMap
+from gevsim.tonemap import ToneMap
 
 
 def _png(path: Path, image01: np.ndarray) -> None:

@@ -5,7 +5,7 @@ no absolute level: every reconstruction gets the ground-truth mean of its frame
 (the papers' protocol) or, with
 ``mean="photodiode"``, the log of the mean irradiance that one extra global
 photodiode would measure. Scores are EVREAL's, on frames tone-mapped by
-:class:`~gevsim.reconstruct.tonemap.ToneMap`.
+:class:`~gevsim.tonemap.ToneMap`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from gevsim.evaluation.methods import check_method
 from gevsim.io import EventReader
 from gevsim.metrics import frame_metrics
 from gevsim.reconstruct.gradient import global_photodiode_mean
-from gevsim.reconstruct.tonemap import ToneMap
+from gevsim.tonemap import ToneMap
 
 MEANS = ("ground-truth", "photodiode")
 

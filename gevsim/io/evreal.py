@@ -216,11 +216,11 @@ def import_evreal(folder: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | N
 def export_evreal_from(path: str | os.PathLike, folder: str | os.PathLike, *, extra_metadata: dict | None = None
                        ) -> dict:
     """An emulation file's DVS stream and its ground truth (``/frames/log_photocurrent``, tone-mapped to
-    uint8 by :class:`~gevsim.reconstruct.tonemap.ToneMap` from the frames' own range) as an EVREAL sequence
+    uint8 by :class:`~gevsim.tonemap.ToneMap` from the frames' own range) as an EVREAL sequence
     folder; returns ``{"events": count}``. Refuses a file with fewer than :data:`MIN_EVENTS` DVS events
     (EVREAL cannot load it)."""
     from gevsim.io.event_reader import EventReader
-    from gevsim.reconstruct.tonemap import ToneMap
+    from gevsim.tonemap import ToneMap
 
     with EventReader(path) as r:
         if r.count("events") < MIN_EVENTS:

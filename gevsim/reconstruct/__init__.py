@@ -20,7 +20,7 @@ from gevsim.reconstruct.poisson import (
     solve_poisson,
     sor,
 )
-from gevsim.reconstruct.tonemap import ToneMap
+from gevsim.tonemap import ToneMap
 
 __all__ = [
     "ToneMap", "complementary_filter", "direct_integration", "high_pass_filter",

@@ -9,7 +9,7 @@ import pytest
 from gevsim.cli import main
 from gevsim.emulation import load_config, run
 from gevsim.evaluation import reconstruct_file
-from gevsim.reconstruct.tonemap import ToneMap
+from gevsim.tonemap import ToneMap
 
 DATA = Path(__file__).parents[1] / "data"
 

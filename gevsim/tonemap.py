@@ -5,6 +5,7 @@ same map, fixed by the ground truth: ln-units between the 1st and 99th
 percentile of all ground-truth frames map linearly to [0, 1] (clipped).
 Frame-mode sequences are already [0, 1] intensities and use the identity.
 The metrics (EVREAL's MSE and SSIM on [0, 1] frames) are computed after it.
+It depends on nothing above it, so the evaluation, the plots and the EVREAL export all take it from here.
 """
 
 from __future__ import annotations
