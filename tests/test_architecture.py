@@ -1,5 +1,7 @@
 """Data flows one way (DESIGN.md, The pipeline): the model stages import no I/O, renderer,
-experiment runner or CLI, and the renderer imports no experiment runner or CLI.
+experiment runner or CLI, the renderer imports no experiment runner, CLI or plots, the low
+modules (file formats, resource checks, the tone map) import nothing above them, and no
+gevsim module imports itself through others (no import cycles, issue 33).
 
 The imports are read from the source with ``ast`` (every ``import`` and ``from ... import``,
 at module level or inside functions), so a lazy import counts too.
@@ -21,7 +23,12 @@ FORBIDDEN = {
     "gevsim.events": ("gevsim.io", "gevsim.render", "gevsim.experiments", "gevsim.cli"),
     "gevsim.pixel": ("gevsim.io", "gevsim.render", "gevsim.experiments", "gevsim.cli"),
     "gevsim.reconstruct": ("gevsim.io", "gevsim.render", "gevsim.experiments", "gevsim.cli"),
-    "gevsim.render": ("gevsim.experiments", "gevsim.cli"),
+    "gevsim.render": ("gevsim.experiments", "gevsim.cli", "gevsim.plots"),
+    # Arrows that ran back up (issue 33): low modules take plain values, and callers above them draw.
+    "gevsim.resources": ("gevsim.emulation", "gevsim.render", "gevsim.io", "gevsim.experiments", "gevsim.cli"),
+    "gevsim.io": ("gevsim.reconstruct", "gevsim.evaluation", "gevsim.render", "gevsim.emulation", "gevsim.plots",
+                  "gevsim.experiments", "gevsim.cli"),
+    "gevsim.tonemap": ("gevsim.reconstruct", "gevsim.evaluation", "gevsim.io", "gevsim.plots"),
 }
 
 
@@ -32,21 +39,28 @@ def module_name(path: Path) -> str:
     return ".".join(parts)
 
 
+def _from_module(node: ast.ImportFrom, package: str) -> str:
+    """The absolute module of ``from ... import`` in ``package`` (a relative import resolved)."""
+    if not node.level:
+        return node.module or ""
+    base = package.split(".")
+    base = base[: len(base) - node.level + 1]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _package(path: Path, name: str) -> str:
+    return name if path.name == "__init__.py" else name.rpartition(".")[0]
+
+
 def imports(path: Path) -> set[str]:
     """Absolute names of every module ``path`` imports (relative imports resolved)."""
-    name = module_name(path)
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    package = _package(path, module_name(path))
     found = set()
     for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
         if isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - node.level + 1]
-                module = ".".join(base + ([node.module] if node.module else []))
-            else:
-                module = node.module
+            module = _from_module(node, package)
             found.add(module)
             found.update(f"{module}.{alias.name}" for alias in node.names)
     return found
@@ -78,6 +92,115 @@ def test_stage_imports_flow_one_way(stage):
                 if within(imported, forbidden):
                     bad.append(f"{module_name(path)} imports {imported}")
     assert not bad, "\n".join(sorted(set(bad)))
+
+
+
+# --- No import cycles (issue 33) --------------------------------------------------------------
+# An import under ``if TYPE_CHECKING:`` never runs and does not count; one inside a function does.
+MODULE_NAMES = {module_name(p) for p in MODULES}
+
+
+def _type_checking_nodes(tree: ast.AST) -> set[int]:
+    """ids of the nodes inside ``if TYPE_CHECKING:`` (or ``typing.TYPE_CHECKING``) blocks."""
+    skip = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and (
+                (isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING")
+                or (isinstance(node.test, ast.Attribute) and node.test.attr == "TYPE_CHECKING")):
+            skip.update(id(inner) for stmt in node.body for inner in ast.walk(stmt))
+    return skip
+
+
+def runtime_imports(path: Path, name: str) -> set[str]:
+    """The gevsim modules that module ``name`` (source ``path``) imports when it runs: ``from pkg import x``
+    is the module ``pkg.x`` where there is one, else ``pkg`` (its ``__init__``); itself left out."""
+    package = _package(path, name)
+    tree = ast.parse(path.read_text(), filename=str(path))
+    skip = _type_checking_nodes(tree)
+    found = set()
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            module = _from_module(node, package)
+            found.update(f"{module}.{a.name}" if f"{module}.{a.name}" in MODULE_NAMES else module for a in node.names)
+    return {m for m in found if m in MODULE_NAMES and m != name}
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of ``graph`` (module -> modules it imports) that hold a cycle:
+    more than one module, or one that imports itself; each sorted (Tarjan, SIAM J. Comput. 1, 1972,
+    without recursion)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        work.append((node, iter(sorted(graph.get(node, ())))))
+
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work: list = []
+        visit(root)
+        while work:
+            node, children = work[-1]
+            for child in children:
+                if child not in index:
+                    visit(child)
+                    break
+                if child in on_stack:
+                    low[node] = min(low[node], index[child])
+            else:
+                work.pop()
+                if work:
+                    parent = work[-1][0]
+                    low[parent] = min(low[parent], low[node])
+                if low[node] == index[node]:
+                    component = []
+                    while not component or component[-1] != node:
+                        component.append(stack.pop())
+                        on_stack.discard(component[-1])
+                    if len(component) > 1 or node in graph.get(node, ()):
+                        found.append(sorted(component))
+    return sorted(found)
+
+
+def test_the_cycle_finder_finds_cycles_and_only_cycles():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": {"e"}, "e": set(), "f": {"f", "a"}, "g": {"h"},
+             "h": {"g"}}
+    assert import_cycles(graph) == [["a", "b", "c"], ["f"], ["g", "h"]]
+    assert import_cycles({"a": {"b", "c"}, "b": {"c"}, "c": set()}) == []
+    # A long chain: no recursion limit.
+    assert import_cycles({str(i): {str(i + 1)} for i in range(5000)}) == []
+    assert import_cycles({**{str(i): {str(i + 1)} for i in range(5000)}, "5000": {"0"}}) == [
+        sorted(str(i) for i in range(5001))]
+
+
+def test_the_import_graph_counts_lazy_imports_and_not_type_checking_ones(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text("from typing import TYPE_CHECKING\nimport gevsim.errors\nif TYPE_CHECKING:\n"
+                     "    from gevsim.io import atomic\nelse:\n    import numpy\n"
+                     "def f():\n    from gevsim.render import basis, render_basis\n    from . import timebase\n")
+    assert runtime_imports(probe, "gevsim.probe") == {"gevsim.errors", "gevsim.render.basis", "gevsim.render",
+                                                      "gevsim.timebase"}
+
+
+def test_no_import_cycles():
+    graph = {module_name(p): runtime_imports(p, module_name(p)) for p in MODULES}
+    found = import_cycles(graph)
+    report = []
+    for component in found:
+        edges = [f"  {a} -> {b}" for a in component for b in sorted(graph[a]) if b in component]
+        report.append(f"import cycle among {', '.join(component)}:\n" + "\n".join(edges))
+    assert not found, "\n".join(report)
 
 
 # --- Same bits on every CPU (issue 21) ---------------------------------------------------------
