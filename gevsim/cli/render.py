@@ -11,6 +11,7 @@ from gevsim.cli._common import _progress
 from gevsim.errors import ConfigError
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
     from pathlib import Path
 
     import numpy as np
@@ -75,7 +76,7 @@ def _plots(title: str) -> FramePlots:
     """What ``--plots`` draws into a render's folder: a contact sheet of the frames and the lamps' waveforms."""
     from gevsim import plots as plotting
 
-    def draw(folder: Path, basis: BasisSet, frames: np.ndarray, times_s: list, mean_lux: np.ndarray) -> None:
+    def draw(folder: Path, basis: BasisSet, frames: np.ndarray, times_s: list, mean_lux: Sequence[float]) -> None:
         plotting.contact_sheet(frames, times_s, folder / "contact_sheet.png", title=title)
         plotting.waveform_plot(basis, times_s, mean_lux, folder / "waveform.png", title=title)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from gevsim.render.scene_config import resolved_config, scene_optics
 
 #: ``plots(folder, basis, frames, times_s, mean_lux)``: draws the irradiance frames (T, H, W, C) at ``times_s``
 #: and their mean illuminance (T,) into the staged output folder (so they are part of the output).
-FramePlots = Callable[[Path, BasisSet, np.ndarray, list, np.ndarray], None]
+FramePlots = Callable[[Path, BasisSet, np.ndarray, list, Sequence[float]], None]
 
 
 def irradiance_frames(basis: BasisSet, manifest: SceneManifest, times_s: ArrayLike, *, lens: Lens,
