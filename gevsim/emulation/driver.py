@@ -180,24 +180,10 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     render_s = time.perf_counter() - start
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width
-    seeds = np.random.SeedSequence(config.seed).spawn(SEED_SLOTS)
-    pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise,
-                       rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]), cold_start=config.cold_start)
-    start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s)
-    emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
-                                     rng=np.random.default_rng(seeds[entry.seed_slot]))
-                 for name, entry in EMULATORS.items() if name in config.emulators}
-    readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
-    bus = chip_share(preset.readout, emulated_px=h * w, chip_px=preset.width * preset.height)
-    readouts = {name: Readout(bus, key=int(readout_key) + EMULATORS[name].seed_slot, shape=(h, w))
-                for name in emulators}  # each stream: the sensor's own bus
+    pr, start_state, emulators, readouts, aps, aps_rng = _chain(config, setup)
     end_us = int(round(setup.duration_s * 1e6))
-    aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))
-           if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
-    aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
 
     n_steps = config.time.steps(setup.duration_s)
-    t_end_all = config.step_s * np.arange(1, n_steps + 1)
     frame_t = config.time.frame_times_s(setup.duration_s)
     counts = {EMULATORS[n].stream: 0 for n in emulators}
     dark = dark_current_a(preset.noise, preset.photoreceptor.temperature_k)
@@ -207,7 +193,6 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
              "scene_toml": resolved_config(m), "emulators": list(emulators),
              "render_noise_json": json.dumps(setup.render_quality, default=float, sort_keys=True),
              "start": start_state, "substeps": sub}
-    pixel_s = 0.0
     event_s = {n: 0.0 for n in emulators}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
                      extra_attrs=extra) as wr:
@@ -217,27 +202,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
                 layout.write_thresholds(wr, name, stored(em, preset))
         if config.frame_rate_hz > 0:
             write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
-        chunks = range(0, n_steps, config.chunk_steps)
-        for c, a in enumerate(chunks):
-            b = min(a + config.chunk_steps, n_steps)
-            t0 = t_end_all[a] - config.step_s
-            t_end = step_grid(grid_waveforms, t0, refine(t_end_all[a:b], t0, sub))
-            current = held_photocurrent(setup, t0, t_end)
-            tick = time.perf_counter()
-            v = pr.process(current, t_end)
-            pixel_s += time.perf_counter() - tick
-            for name, em in emulators.items():
-                tick = time.perf_counter()
-                until = None if b == n_steps else math.floor(t_end[-1] * 1e6)
-                events = readouts[name].process(em.process(v, t_end), end_us=end_us, until_us=until)
-                event_s[name] += time.perf_counter() - tick
-                stream = EMULATORS[name].stream
-                if c == 0 and EMULATORS[name].decodes:  # decoding starts from it
-                    layout.write_initial_state(wr, name, em.initial_state)
-                wr.append(stream, events)
-                counts[stream] += len(events)
-            if progress:
-                progress(c + 1, len(chunks))
+        pixel_s = _stream_chunks(config, setup, wr, pr, emulators, readouts, grid_waveforms=grid_waveforms,
+                                 sub=sub, end_us=end_us, counts=counts, event_s=event_s, progress=progress)
         readout = {EMULATORS[n].stream: r.summary() for n, r in readouts.items()}
         log_readouts(readout)
         wr.set_attrs("/", readout_json=json.dumps(readout, sort_keys=True, default=float))
@@ -250,6 +216,61 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
         pixel_steps_per_s=pixel_steps / max(pixel_s, 1e-12), total_s=time.perf_counter() - start,
         readout=readout,
     )
+
+
+def _chain(config: EmulationConfig, setup: Setup) -> tuple:
+    """The run's pixel chain, each part seeded by its slot of the run's seed sequence: the photoreceptor
+    (settled unless a cold start), the emulators, their readouts (the sensor's bus share of the window),
+    and the APS sensor and its read-noise generator (or None)."""
+    preset, m = setup.preset, setup.manifest
+    h, w = m.render.height, m.render.width
+    seeds = np.random.SeedSequence(config.seed).spawn(SEED_SLOTS)
+    pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise,
+                       rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]), cold_start=config.cold_start)
+    start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s)
+    emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
+                                     rng=np.random.default_rng(seeds[entry.seed_slot]))
+                 for name, entry in EMULATORS.items() if name in config.emulators}
+    readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
+    bus = chip_share(preset.readout, emulated_px=h * w, chip_px=preset.width * preset.height)
+    readouts = {name: Readout(bus, key=int(readout_key) + EMULATORS[name].seed_slot, shape=(h, w))
+                for name in emulators}  # each stream: the sensor's own bus
+    aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))
+           if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
+    aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
+    return pr, start_state, emulators, readouts, aps, aps_rng
+
+
+def _stream_chunks(config: EmulationConfig, setup: Setup, wr: EventWriter, pr: Photoreceptor, emulators: dict,
+                   readouts: dict, *, grid_waveforms: tuple, sub: int, end_us: int, counts: dict,
+                   event_s: dict, progress: Progress | None) -> float:
+    """Step the chain over the run in chunks of ``chunk_steps`` and append each stream's events to
+    ``wr`` (counting them in ``counts``, timing them in ``event_s``); returns the pixel model's seconds."""
+    n_steps = config.time.steps(setup.duration_s)
+    t_end_all = config.step_s * np.arange(1, n_steps + 1)
+    pixel_s = 0.0
+    chunks = range(0, n_steps, config.chunk_steps)
+    for c, a in enumerate(chunks):
+        b = min(a + config.chunk_steps, n_steps)
+        t0 = t_end_all[a] - config.step_s
+        t_end = step_grid(grid_waveforms, t0, refine(t_end_all[a:b], t0, sub))
+        current = held_photocurrent(setup, t0, t_end)
+        tick = time.perf_counter()
+        v = pr.process(current, t_end)
+        pixel_s += time.perf_counter() - tick
+        for name, em in emulators.items():
+            tick = time.perf_counter()
+            until = None if b == n_steps else math.floor(t_end[-1] * 1e6)
+            events = readouts[name].process(em.process(v, t_end), end_us=end_us, until_us=until)
+            event_s[name] += time.perf_counter() - tick
+            stream = EMULATORS[name].stream
+            if c == 0 and EMULATORS[name].decodes:  # decoding starts from it
+                layout.write_initial_state(wr, name, em.initial_state)
+            wr.append(stream, events)
+            counts[stream] += len(events)
+        if progress:
+            progress(c + 1, len(chunks))
+    return pixel_s
 
 
 def substeps(config: EmulationConfig, setup: Setup) -> int:
