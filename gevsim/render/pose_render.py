@@ -82,74 +82,19 @@ def render_pose(
     target = request["target_ln"]
     start = time.perf_counter()
 
-    on_grid = {} if grid is None else {"grid": grid} if pixels is None else {"grid": grid, "pixels": pixels}
-    # Per-pixel adaptive sampling: after MIN_BATCHES, only pixels whose error is above
-    # ADAPTIVE_STOP_FRACTION x the target get further batches (the stop rule is unchanged).
     adaptive = request.get("sampling") == "adaptive" and target is not None and not request.get("denoise") \
         and (one_pass if one_pass is not None else scene.one_pass)
-    active: np.ndarray | None = None  # the accumulator's pixels still sampled; None: all
-    full_shape = (r.height, r.width) if grid is None else (1, len(pixels)) if pixels is not None \
-        else (grid.height, grid.width)  # what one batch covers, in cells
-
-    def batch(spp: int) -> None:  # samples per cell
-        seed = batch_seed(r.seed, acc.batches)
-        if active is None:
-            images = scene.render_groups(spp=spp, seed=seed, one_pass=one_pass, **on_grid)
-            acc.add(images, luminance(images), scene.sample_count(spp) * per)
-            return
-        if pixels is None:  # the active pixels' cells, as flat indices of the grid (or film)
-            where = render = active_cells(active, 1 if grid is None else grid.sub)
-        else:  # the active cells among those asked for
-            where = np.flatnonzero(active.ravel())
-            render = np.asarray(pixels)[where]
-        part = scene.render_groups(spp=spp, seed=seed, one_pass=one_pass, grid=grid, pixels=render)
-        flat = np.zeros((part.shape[0], full_shape[0] * full_shape[1], part.shape[-1]), np.float32)
-        flat[:, where] = part[:, 0]
-        full = flat.reshape(part.shape[0], *full_shape, part.shape[-1])
-        acc.add(full, luminance(full), scene.sample_count(spp) * per, mask=active)
-
+    batches = _Batches(scene, acc, grid=grid, pixels=pixels, one_pass=one_pass, per=per)
     if target is None:
         size, count = fixed_batches(-(-request["spp"] // per), r.sampler, cap=cap)
         if request.get("batches"):  # fewer, larger batches: each costs ~70 ms of tracing whatever its size
             count = int(request["batches"])
             size = exact_count(r.sampler, min(cap, -(-request["spp"] // (per * count))))
         for _ in range(count):
-            batch(size)
+            batches.add(size)
         stopped = "fixed"
     else:
-        stopped, ratio, have = None, None, 0  # have: samples of the pixels still sampled (the least)
-        # The error over what each pixel must reach: the target, or a per-pixel map of targets
-        # (``target_map``: a reuse method's budget for the cells it renders anew).
-        goal = request.get("target_map", target)
-        frac = float(request.get("stop_fraction", ADAPTIVE_STOP_FRACTION))
-        while stopped is None:
-            if active is not None:
-                cap = max(1, MAX_BATCH_PATHS // (int(active.sum()) * per))
-            size = next_batch_spp(have // per, first=max(1, FIRST_BATCH_SPP // per), cap=cap)
-            if active is not None and ratio is not None:  # adaptive: toward the active pixels' median need,
-                # at most doubling their samples a round (few, large batches: each costs ~30 ms of set-up)
-                need = needed_spp(have, float(np.median(ratio[active])), frac)
-                size = int(min(cap, max(size, min(have, (need - have) / 2) // per)))
-                size = 4 ** int(math.log(max(size, 1), 4) + 1e-9)  # a power of 4: Dr.Jit compiles a kernel per
-                # sample count (~0.5 s each), so batch sizes come from a short list that its kernel cache keeps
-            size = exact_count(r.sampler, max(1, min(size, (request["max_spp"] - have) // (2 * per))))
-            for _ in range(2):
-                batch(size)
-            elapsed = time.perf_counter() - start
-            se = acc.se_ln() if acc.batches >= MIN_BATCHES else None
-            ratio = None if se is None else se / goal
-            if adaptive and ratio is not None:
-                active = ratio > frac
-            have = int(acc.pixel_spp()[active].min()) if active is not None and active.any() else acc.spp
-            if se is not None and ratio is not None and (
-                    np.percentile(se, request["percentile"]) <= target if np.isscalar(goal)
-                    else np.percentile(ratio, request["percentile"]) <= 1.0):
-                stopped = "target"
-            elif have + 2 * exact_count(r.sampler, 1) * per > request["max_spp"]:
-                stopped = "max_spp"
-            elif budget_s is not None and elapsed * (1.0 + 2.0 * size * per / acc.spp) > budget_s:
-                stopped = "time_budget"
-    assert stopped is not None
+        stopped = _to_target(batches, request, cap=cap, adaptive=adaptive, budget_s=budget_s, start=start)
     se_map = acc.se_ln()
     mean, noise, denoised = acc.mean(), acc.noise(), None
     if request.get("denoise"):
@@ -160,6 +105,85 @@ def render_pose(
                          spp_mean=float(acc.pixel_spp().mean()),
                          seconds=time.perf_counter() - start, denoised_se_ln=denoised)
     return mean, noise, se_map.astype(np.float32), report
+
+
+class _Batches:
+    """Renders batches of a pose into its accumulator: every cell, or (adaptive sampling) only the cells of
+    the pixels still ``active``."""
+
+    def __init__(self, scene: MitsubaScene, acc: BatchAccumulator, *, grid: PinholeGrid | None,
+                 pixels: np.ndarray | None, one_pass: bool | None, per: int):
+        r = scene.manifest.render
+        self.scene, self.acc, self.grid, self.pixels, self.one_pass, self.per = scene, acc, grid, pixels, one_pass, per
+        self.on_grid = {} if grid is None else {"grid": grid} if pixels is None else {"grid": grid, "pixels": pixels}
+        self.active: np.ndarray | None = None  # the accumulator's pixels still sampled; None: all
+        self.full_shape = (r.height, r.width) if grid is None else (1, len(pixels)) if pixels is not None \
+            else (grid.height, grid.width)  # what one batch covers, in cells
+        self.seed = r.seed
+
+    def add(self, spp: int) -> None:
+        """Render one batch of ``spp`` samples per cell and add it."""
+        scene, acc, grid, pixels, active = self.scene, self.acc, self.grid, self.pixels, self.active
+        seed = batch_seed(self.seed, acc.batches)
+        if active is None:
+            images = scene.render_groups(spp=spp, seed=seed, one_pass=self.one_pass, **self.on_grid)
+            acc.add(images, luminance(images), scene.sample_count(spp) * self.per)
+            return
+        if pixels is None:  # the active pixels' cells, as flat indices of the grid (or film)
+            where = render = active_cells(active, 1 if grid is None else grid.sub)
+        else:  # the active cells among those asked for
+            where = np.flatnonzero(active.ravel())
+            render = np.asarray(pixels)[where]
+        part = scene.render_groups(spp=spp, seed=seed, one_pass=self.one_pass, grid=grid, pixels=render)
+        h, w = self.full_shape
+        flat = np.zeros((part.shape[0], h * w, part.shape[-1]), np.float32)
+        flat[:, where] = part[:, 0]
+        full = flat.reshape(part.shape[0], h, w, part.shape[-1])
+        acc.add(full, luminance(full), scene.sample_count(spp) * self.per, mask=active)
+
+
+def _to_target(batches: _Batches, request: dict, *, cap: int, adaptive: bool, budget_s: float | None,
+               start: float) -> str:
+    """Render pairs of batches until the error target is met (or ``max_spp`` or the time budget); returns
+    what stopped it. Per-pixel adaptive sampling: after MIN_BATCHES, only pixels whose error is above
+    ADAPTIVE_STOP_FRACTION x the target get further batches (the stop rule is unchanged)."""
+    acc, per, sampler = batches.acc, batches.per, batches.scene.manifest.render.sampler
+    target = request["target_ln"]
+    stopped, ratio, have = None, None, 0  # have: samples of the pixels still sampled (the least)
+    # The error over what each pixel must reach: the target, or a per-pixel map of targets
+    # (``target_map``: a reuse method's budget for the cells it renders anew).
+    goal = request.get("target_map", target)
+    frac = float(request.get("stop_fraction", ADAPTIVE_STOP_FRACTION))
+    while stopped is None:
+        active = batches.active
+        if active is not None:
+            cap = max(1, MAX_BATCH_PATHS // (int(active.sum()) * per))
+        size = next_batch_spp(have // per, first=max(1, FIRST_BATCH_SPP // per), cap=cap)
+        if active is not None and ratio is not None:  # adaptive: toward the active pixels' median need,
+            # at most doubling their samples a round (few, large batches: each costs ~30 ms of set-up)
+            need = needed_spp(have, float(np.median(ratio[active])), frac)
+            size = int(min(cap, max(size, min(have, (need - have) / 2) // per)))
+            size = 4 ** int(math.log(max(size, 1), 4) + 1e-9)  # a power of 4: Dr.Jit compiles a kernel per
+            # sample count (~0.5 s each), so batch sizes come from a short list that its kernel cache keeps
+        size = exact_count(sampler, max(1, min(size, (request["max_spp"] - have) // (2 * per))))
+        for _ in range(2):
+            batches.add(size)
+        elapsed = time.perf_counter() - start
+        se = acc.se_ln() if acc.batches >= MIN_BATCHES else None
+        ratio = None if se is None else se / goal
+        if adaptive and ratio is not None:
+            batches.active = active = ratio > frac
+        have = int(acc.pixel_spp()[active].min()) if active is not None and active.any() else acc.spp
+        if se is not None and ratio is not None and (
+                np.percentile(se, request["percentile"]) <= target if np.isscalar(goal)
+                else np.percentile(ratio, request["percentile"]) <= 1.0):
+            stopped = "target"
+        elif have + 2 * exact_count(sampler, 1) * per > request["max_spp"]:
+            stopped = "max_spp"
+        elif budget_s is not None and elapsed * (1.0 + 2.0 * size * per / acc.spp) > budget_s:
+            stopped = "time_budget"
+    assert stopped is not None
+    return stopped
 
 
 def denoise_pose(scene: MitsubaScene, acc: BatchAccumulator, request: dict) -> tuple[np.ndarray, np.ndarray, dict]:
