@@ -182,17 +182,7 @@ def load(scene: str | Path) -> SceneManifest:
 
     sc = r.table(raw, "scene")
     check_keys(sc, SCENE_KEYS, source=r.source, where="scene")
-    if "builder" not in sc:
-        r.fail("scene.builder", "missing: name the Python file with the scene's build(options) function, or a "
-                                "Mitsuba XML scene file")
-    if not isinstance(sc["builder"], str):
-        r.fail("scene.builder", f"expected the path of a Python builder (.py) or a Mitsuba XML scene (.xml), got "
-                                f"{sc['builder']!r}")
-    builder = (path.parent / sc["builder"]).resolve()
-    if not builder.is_file():
-        r.fail("scene.builder", f"no such file {builder}")
-    if builder.suffix.lower() not in (".py", ".xml"):
-        r.fail("scene.builder", f"expected a Python builder (.py) or a Mitsuba XML scene (.xml), got {builder.name}")
+    builder = _builder(sc, path, r)
     options = sc.get("options", {})
     if not isinstance(options, dict):
         r.fail("scene.options", f"expected a table, got {options!r}")
@@ -205,6 +195,49 @@ def load(scene: str | Path) -> SceneManifest:
 
     cam = r.table(raw, "camera")
     check_keys(cam, CAMERA_KEYS, source=r.source, where="camera")
+    fov_deg, camera = _camera(cam, r)
+
+    motion = _motions(raw, r)
+
+    groups = _light_groups(raw, r)
+
+    optics = r.table(raw, "optics")
+    return SceneManifest(
+        name=str(sc.get("name", path.stem)),
+        source=r.source,
+        builder=builder,
+        options=options,
+        render=render,
+        duration_s=duration_s,
+        fov_deg=fov_deg,
+        camera=tuple(camera),
+        motion=tuple(motion),
+        light_groups=tuple(groups),
+        optics=optics,
+        description=str(sc.get("description", "")),
+        raw=raw,
+        manifests=tuple(manifests),
+    )
+
+
+def _builder(sc: dict, path: Path, r: TomlReader) -> Path:
+    """The scene's builder file (a Python build(options) or a Mitsuba XML scene), beside the manifest."""
+    if "builder" not in sc:
+        r.fail("scene.builder", "missing: name the Python file with the scene's build(options) function, or a "
+                                "Mitsuba XML scene file")
+    if not isinstance(sc["builder"], str):
+        r.fail("scene.builder", f"expected the path of a Python builder (.py) or a Mitsuba XML scene (.xml), got "
+                                f"{sc['builder']!r}")
+    builder = (path.parent / sc["builder"]).resolve()
+    if not builder.is_file():
+        r.fail("scene.builder", f"no such file {builder}")
+    if builder.suffix.lower() not in (".py", ".xml"):
+        r.fail("scene.builder", f"expected a Python builder (.py) or a Mitsuba XML scene (.xml), got {builder.name}")
+    return builder
+
+
+def _camera(cam: dict, r: TomlReader) -> tuple[float, list[CameraKey]]:
+    """The ``[camera]`` table: field of view (degrees) and keyframes, checked."""
     fov_deg = float(r.number(cam, "fov_deg", "camera", 60.0, positive=True))
     if fov_deg >= 180:
         r.fail("camera.fov_deg", f"must be < 180, got {fov_deg}")
@@ -227,7 +260,11 @@ def load(scene: str | Path) -> SceneManifest:
         if np.allclose(key.origin, key.target):
             r.fail(f"camera.keyframes[{i}]", "origin and target coincide")
         check_up(key.origin, key.target, key.up, r, f"camera.keyframes[{i}].up")
+    return fov_deg, camera
 
+
+def _motions(raw: dict, r: TomlReader) -> list[Motion]:
+    """The ``[[motion]]`` tables: moving shapes and their keyframes, checked."""
     motion = []
     for i, mo in enumerate(r.list(raw, "motion", of=dict, item="a [[motion]] table")):
         where = f"motion[{i}]"
@@ -255,7 +292,11 @@ def load(scene: str | Path) -> SceneManifest:
         if np.linalg.norm(axis) == 0:
             r.fail(f"{where}.axis", "must not be the zero vector")
         motion.append(Motion(objects=tuple(objects), keyframes=tuple(keys), axis=axis))
+    return motion
 
+
+def _light_groups(raw: dict, r: TomlReader) -> list[LightGroup]:
+    """The ``[light_groups.<name>]`` tables; an emitter may be in one group only."""
     groups = []
     lg = r.table(raw, "light_groups")
     if not lg:
@@ -268,24 +309,7 @@ def load(scene: str | Path) -> SceneManifest:
             if e in seen:
                 r.fail(f"light_groups.{g.name}.emitters", f"emitter {e!r} is already in light group {seen[e]!r}")
             seen[e] = g.name
-
-    optics = r.table(raw, "optics")
-    return SceneManifest(
-        name=str(sc.get("name", path.stem)),
-        source=r.source,
-        builder=builder,
-        options=options,
-        render=render,
-        duration_s=duration_s,
-        fov_deg=fov_deg,
-        camera=tuple(camera),
-        motion=tuple(motion),
-        light_groups=tuple(groups),
-        optics=optics,
-        description=str(sc.get("description", "")),
-        raw=raw,
-        manifests=tuple(manifests),
-    )
+    return groups
 
 
 def _check_times(times, r: TomlReader, where: str) -> None:
