@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
+from collections.abc import Sequence
 from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Self
@@ -14,7 +15,7 @@ from gevsim import _validate
 from gevsim._validate import FieldError  # defined with the checks that raise it; re-exported here
 from gevsim.errors import ConfigError, check_keys
 
-__all__ = ["FieldError", "FromTable", "TomlReader", "read_toml", "resource_tomls"]
+__all__ = ["FieldError", "FromTable", "TomlReader", "load_table", "read_toml", "resolve_relative", "resource_tomls"]
 
 _REPO = Path(__file__).resolve().parents[1]
 _PACKAGE = Path(__file__).resolve().parent
@@ -120,6 +121,25 @@ def _check_nesting(data: dict, *, source: str) -> None:
             raise ConfigError(f"malformed TOML: nested more than {MAX_NESTING} levels deep", source=source)
         children = value.values() if isinstance(value, dict) else value
         stack.extend((v, depth + 1) for v in children if isinstance(v, (dict, list)))
+
+
+def load_table(path: str | Path, *, what: str, tables: Sequence[str]) -> tuple[dict, TomlReader]:
+    """The prelude of every config loader: parse the TOML file at ``path`` (:func:`read_toml`; ``what``
+    names the kind of file in errors) and refuse a top-level key outside ``tables``. Returns the parsed
+    tree and a :class:`TomlReader` whose errors name the file."""
+    raw = read_toml(Path(path), what=what)
+    reader = TomlReader(str(path))
+    check_keys(raw, tables, source=reader.source, where="")
+    return raw, reader
+
+
+def resolve_relative(value: Any, base_dir: str | Path) -> Any:
+    """A relative ``.toml`` path (a scene manifest or sensor preset named in a config) taken from
+    ``base_dir``, the folder of the file that names it, not from the working directory, as an absolute
+    path; anything else (a built-in name, an absolute path, not a string) as it is."""
+    if isinstance(value, str) and value.endswith(".toml") and not Path(value).is_absolute():
+        return str((Path(base_dir) / value).resolve())
+    return value
 
 
 class TomlReader:

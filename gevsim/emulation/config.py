@@ -44,17 +44,18 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
+from typing import Any, TypeVar
 
-from gevsim._validate import FieldError, real_list
-from gevsim.config import TomlReader, read_toml
-from gevsim.emulation.emulators import EMULATORS, check_emulator_list
+from gevsim._validate import FieldError
+from gevsim.config import FromTable, TomlReader, load_table, resolve_relative
+from gevsim.emulation.emulators import EMULATORS, PARAMS, GradientConfig, SurroundConfig, check_emulator_list
 from gevsim.errors import ConfigError, check_keys
-from gevsim.events.center_surround import MAX_SURROUND_LENGTH_PX
 from gevsim.render.manifest_checks import MAX_LUMINANCE_CD_M2
 from gevsim.render.quality import check_render_overrides
 from gevsim.timebase import TimeGrid
 
-TABLES = ("emulation", "render", "gradient", "csdvs", "light", "sensor")
+#: The emulators' own tables (:data:`gevsim.emulation.emulators.PARAMS`) sit between [render] and [light].
+TABLES = ("emulation", "render", *(cls.TABLE for cls in PARAMS), "light", "sensor")
 #: The largest factor on a light group's radiance (light.scale times its group's scale): one that takes a dim
 #: 1 cd/m^2 emitter to the brightest a manifest may state (1e10 cd/m^2). light.scale = 1e300 gave an infinite
 #: photocurrent after the render.
@@ -62,14 +63,28 @@ MAX_LIGHT_SCALE = MAX_LUMINANCE_CD_M2 / 1.0
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
                   "aps", "aps_exposure_s", "cold_start")
 
+P = TypeVar("P", bound=FromTable)
+
 
 @dataclass(frozen=True)
 class EmulationConfig:
+    """An emulation: what :func:`gevsim.emulation.driver.run` needs (a config file's contents, or built here).
+
+    The time grid's fields and the emulators' parameters are flat keyword fields, as the config's
+    Python users write them (``EmulationConfig(scene="office", thresholds_ln=(0.1, 0.2))``,
+    ``dataclasses.replace(config, hysteresis_ln=0.02)``), typed and visible to mypy. Their defaults are
+    the dataclasses' own (:class:`~gevsim.timebase.TimeGrid`, and the ``params`` dataclass of each entry
+    of :data:`~gevsim.emulation.emulators.EMULATORS`), and so are their checks: :attr:`time` and
+    :meth:`params` build the dataclass from these fields. A mapping of parameter objects instead would
+    need a hand-written ``__init__`` to keep that keyword API; the cost of flat fields is one line per
+    parameter here for an emulator with parameters, and importing this module fails where one is missing
+    or its default differs (:func:`_check_emulator_fields`).
+    """
+
     scene: str
     sensor: str = "davis346"
     emulators: tuple[str, ...] = tuple(EMULATORS)
     seed: int = 0
-    # The time grid, flat for the keyword API; defaults and checks are TimeGrid's (see ``time``).
     duration_s: float | None = TimeGrid.duration_s
     step_s: float = TimeGrid.step_s
     chunk_steps: int = TimeGrid.chunk_steps
@@ -78,10 +93,10 @@ class EmulationConfig:
     aps_exposure_s: float = 5e-4
     cold_start: bool = False  # True: every pixel starts as if just switched on (leak phase 0)
     render: dict = field(default_factory=dict)
-    thresholds_ln: tuple[float, ...] = (0.05, 0.1, 0.2)
-    hysteresis_ln: float = 0.0
-    surround_length_px: float = 2.0
-    surround_tau_s: float = 1e-3
+    thresholds_ln: tuple[float, ...] = GradientConfig.thresholds_ln
+    hysteresis_ln: float = GradientConfig.hysteresis_ln
+    surround_length_px: float = SurroundConfig.surround_length_px
+    surround_tau_s: float = SurroundConfig.surround_tau_s
     sensor_overrides: dict = field(default_factory=dict)  # preset parameter -> value
     light_scale: float = 1.0
     group_scale: dict = field(default_factory=dict)  # light group -> radiance factor
@@ -93,6 +108,11 @@ class EmulationConfig:
     def time(self) -> TimeGrid:
         """The time grid (validated: a bad value raises :class:`~gevsim._validate.FieldError`)."""
         return TimeGrid(**{f.name: getattr(self, f.name) for f in fields(TimeGrid)})
+
+    def params(self, cls: type[P]) -> P:
+        """An emulator's parameters (``cls`` one of :data:`~gevsim.emulation.emulators.PARAMS`) from the
+        fields of the same names (validated: a bad value raises :class:`~gevsim._validate.FieldError`)."""
+        return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
 
     def to_toml(self) -> str:
         """The config as TOML (what an emulation file records; programmatic configs too)."""
@@ -106,101 +126,116 @@ class EmulationConfig:
         groups = {g: {"scale": self.group_scale.get(g, 1.0), **({"waveform": self.group_waveform[g]}
                                                                  if g in self.group_waveform else {})}
                   for g in sorted(set(self.group_scale) | set(self.group_waveform))}  # not set order (#18)
+        emulator_tables = {cls.TABLE: {f.name: _toml_value(getattr(self, f.name)) for f in fields(cls)}
+                           for cls in PARAMS}
         return tomli_w.dumps({
-            "emulation": em, "render": dict(self.render),
-            "gradient": {"thresholds_ln": list(self.thresholds_ln), "hysteresis_ln": self.hysteresis_ln},
-            "csdvs": {"surround_length_px": self.surround_length_px, "surround_tau_s": self.surround_tau_s},
+            "emulation": em, "render": dict(self.render), **emulator_tables,
             "light": {"scale": self.light_scale, "groups": groups},
             "sensor": dict(self.sensor_overrides),
         })
 
 
+def _toml_value(value: Any) -> Any:
+    return list(value) if isinstance(value, tuple) else value
+
+
+def _check_emulator_fields() -> None:
+    """Every parameter of every emulator is a field of :class:`EmulationConfig` with the dataclass's default."""
+    ours = {f.name: f.default for f in fields(EmulationConfig)}
+    for cls in PARAMS:
+        for f in fields(cls):
+            if f.name not in ours or ours[f.name] != f.default:
+                raise TypeError(f"EmulationConfig needs the field {f.name} = {cls.__name__}.{f.name} "
+                                f"([{cls.TABLE}] parameter)")
+
+
+_check_emulator_fields()
+
+
 def load_config(path: str | Path) -> EmulationConfig:
     """Read and validate an emulation config; errors name the file and key."""
     path = Path(path)
-    raw = read_toml(path, what="emulation config")
-    src = str(path)
-    r = TomlReader(src)
-    check_keys(raw, TABLES, source=src, where="")
+    raw, r = load_table(path, what="emulation config", tables=TABLES)
     em = r.table(raw, "emulation")
-    check_keys(em, EMULATION_KEYS, source=src, where="emulation")
-    if not isinstance(em.get("scene"), str):
-        r.fail("emulation.scene", "missing: a built-in scene name or a manifest path" if "scene" not in em else
-               f"expected a built-in scene name or a manifest path, got {em['scene']!r}")
-    scene = em["scene"]
-    if scene.endswith(".toml") and not Path(scene).is_absolute():
-        scene = str((path.parent / scene).resolve())
-    sensor = em.get("sensor", "davis346")
-    if not isinstance(sensor, str):
-        r.fail("emulation.sensor", f"expected a preset name or path, got {sensor!r}")
-    if sensor.endswith(".toml") and not Path(sensor).is_absolute():
-        sensor = str((path.parent / sensor).resolve())
-    _check_names(scene, sensor, r)
+    check_keys(em, EMULATION_KEYS, source=r.source, where="emulation")
+    scene, sensor = _scene_and_sensor(em, r, path.parent)
     try:
         emulators = check_emulator_list(em.get("emulators", list(EMULATORS)))
     except ValueError as exc:
         r.fail("emulation.emulators", str(exc))
     render = r.table(raw, "render")
     check_render_overrides(render, r, "render")
-    grad = r.table(raw, "gradient")
-    check_keys(grad, ("thresholds_ln", "hysteresis_ln"), source=src, where="gradient")
-    thresholds = grad.get("thresholds_ln", [0.05, 0.1, 0.2])
-    try:
-        real_list(thresholds, "thresholds_ln", positive=True)
-    except FieldError as err:
-        r.fail("gradient.thresholds_ln", str(err))
-    cs = r.table(raw, "csdvs")
-    check_keys(cs, ("surround_length_px", "surround_tau_s"), source=src, where="csdvs")
-    light = r.table(raw, "light")
-    check_keys(light, ("scale", "groups"), source=src, where="light")
-    groups = r.table(light, "groups", "light.")
-    group_scale, group_waveform = {}, {}
-    for name, spec in groups.items():
-        where = f"light.groups.{name}"
-        if not isinstance(spec, dict):
-            r.fail(where, f"expected a table, got {spec!r}")
-        check_keys(spec, ("scale", "waveform"), source=src, where=where)
-        if "scale" in spec:
-            group_scale[name] = float(r.number(spec, "scale", where, minimum=0.0))
-        if "waveform" in spec:
-            from gevsim.illumination import from_spec
-
-            from_spec(spec["waveform"], source=src, key=f"{where}.waveform")  # validate now
-            group_waveform[name] = dict(spec["waveform"])
-    aps = em.get("aps", False)
-    if not isinstance(aps, bool):
-        r.fail("emulation.aps", f"expected true or false, got {aps!r}")
-    cold_start = em.get("cold_start", False)
-    if not isinstance(cold_start, bool):
-        r.fail("emulation.cold_start", f"expected true or false, got {cold_start!r}")
-    grid = TimeGrid.from_section(em, source=src, where="emulation")
-    light_scale = float(r.number(light, "scale", "light", 1.0, positive=True, maximum=MAX_LIGHT_SCALE))
-    for name, scale in group_scale.items():
-        if scale * light_scale > MAX_LIGHT_SCALE:
-            r.fail(f"light.groups.{name}.scale", f"{scale:g} (times light.scale = {light_scale:g}) is above "
-                   f"{MAX_LIGHT_SCALE:g}, the factor that takes a 1 cd/m^2 emitter to the brightest gevsim renders")
+    emulator_params: dict[str, Any] = {}
+    for cls in PARAMS:  # each emulator's table, checked by its dataclass
+        emulator_params.update(asdict(cls.from_table(raw.get(cls.TABLE, {}), source=r.source)))
+    light_scale, group_scale, group_waveform = _light(raw, r)
+    flags: dict[str, Any] = {}
+    for key in ("aps", "cold_start"):
+        flags[key] = em.get(key, False)
+        if not isinstance(flags[key], bool):
+            r.fail(f"emulation.{key}", f"expected true or false, got {flags[key]!r}")
+    grid = TimeGrid.from_section(em, source=r.source, where="emulation")
+    _check_light_product(light_scale, group_scale, r)
     return EmulationConfig(
         scene=scene,
         sensor=sensor,
         emulators=tuple(emulators),
         seed=r.number(em, "seed", "emulation", 0, minimum=0, integer=True),
         **asdict(grid),
-        aps=aps,
+        **flags,
         aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
-        cold_start=cold_start,
         render=dict(render),
-        thresholds_ln=tuple(float(t) for t in thresholds),
-        hysteresis_ln=float(r.number(grad, "hysteresis_ln", "gradient", 0.0, minimum=0.0)),
-        surround_length_px=float(r.number(cs, "surround_length_px", "csdvs", 2.0, positive=True,
-                                          maximum=MAX_SURROUND_LENGTH_PX)),
-        surround_tau_s=float(r.number(cs, "surround_tau_s", "csdvs", 1e-3, minimum=0.0)),
+        **emulator_params,
         sensor_overrides=dict(r.table(raw, "sensor")),
         light_scale=light_scale,
         group_scale=group_scale,
         group_waveform=group_waveform,
-        source=src,
+        source=r.source,
         text=path.read_text(),
     )
+
+
+def _scene_and_sensor(em: dict, r: TomlReader, folder: Path) -> tuple[str, str]:
+    """``emulation.scene`` and ``emulation.sensor``: names, or ``.toml`` paths taken from the config's folder."""
+    if not isinstance(em.get("scene"), str):
+        r.fail("emulation.scene", "missing: a built-in scene name or a manifest path" if "scene" not in em else
+               f"expected a built-in scene name or a manifest path, got {em['scene']!r}")
+    scene = resolve_relative(em["scene"], folder)
+    sensor = em.get("sensor", "davis346")
+    if not isinstance(sensor, str):
+        r.fail("emulation.sensor", f"expected a preset name or path, got {sensor!r}")
+    sensor = resolve_relative(sensor, folder)
+    _check_names(scene, sensor, r)
+    return scene, sensor
+
+
+def _light(raw: dict, r: TomlReader) -> tuple[float, dict[str, float], dict[str, dict]]:
+    """``[light]``: its scale, and each light group's scale and waveform table (validated now)."""
+    light = r.table(raw, "light")
+    check_keys(light, ("scale", "groups"), source=r.source, where="light")
+    groups = r.table(light, "groups", "light.")
+    group_scale, group_waveform = {}, {}
+    for name, spec in groups.items():
+        where = f"light.groups.{name}"
+        if not isinstance(spec, dict):
+            r.fail(where, f"expected a table, got {spec!r}")
+        check_keys(spec, ("scale", "waveform"), source=r.source, where=where)
+        if "scale" in spec:
+            group_scale[name] = float(r.number(spec, "scale", where, minimum=0.0))
+        if "waveform" in spec:
+            from gevsim.illumination import from_spec
+
+            from_spec(spec["waveform"], source=r.source, key=f"{where}.waveform")  # validate now
+            group_waveform[name] = dict(spec["waveform"])
+    light_scale = float(r.number(light, "scale", "light", 1.0, positive=True, maximum=MAX_LIGHT_SCALE))
+    return light_scale, group_scale, group_waveform
+
+
+def _check_light_product(light_scale: float, group_scale: dict[str, float], r: TomlReader) -> None:
+    for name, scale in group_scale.items():
+        if scale * light_scale > MAX_LIGHT_SCALE:
+            r.fail(f"light.groups.{name}.scale", f"{scale:g} (times light.scale = {light_scale:g}) is above "
+                   f"{MAX_LIGHT_SCALE:g}, the factor that takes a 1 cd/m^2 emitter to the brightest gevsim renders")
 
 
 def _check_names(scene: str, sensor: str, r: TomlReader) -> None:
@@ -221,9 +256,11 @@ def check_consistency(config: EmulationConfig, *, duration_s: float) -> None:
         config.time.steps(duration_s)
     except FieldError as err:
         raise ConfigError(str(err), source=config.source, key=f"emulation.{err.field}") from None
-    if config.hysteresis_ln >= min(config.thresholds_ln):
-        raise ConfigError(f"hysteresis_ln = {config.hysteresis_ln} must be below the smallest threshold "
-                          f"{min(config.thresholds_ln)}", source=config.source, key="gradient.hysteresis_ln")
+    for cls in PARAMS:  # each emulator's parameters, checked by its dataclass
+        try:
+            config.params(cls)
+        except FieldError as err:
+            raise ConfigError(str(err), source=config.source, key=f"{cls.TABLE}.{err.field}") from None
     if config.aps and config.frame_rate_hz <= 0:
         raise ConfigError("aps = true needs frame_rate_hz > 0", source=config.source, key="emulation.aps")
     if config.aps and config.aps_exposure_s > 1.0 / max(config.frame_rate_hz, 1e-12):

@@ -4,9 +4,10 @@ Counterfactual estimates (per stream, ev/px/s): the paired difference of each
 repeat (run minus no-flicker for flicker-induced events, no-flicker minus ideal
 for noise-induced, floor minus ideal for the render-noise floor), then the
 Student t interval of their mean over the R repeats
-(:func:`gevsim.metrics.attribution.mean_interval`). The DVS/gradient rejection
-ratio is the ratio of the mean flicker-induced rates with Fieller's interval
-from the paired repeats (:func:`~gevsim.metrics.attribution.ratio_interval`).
+(:func:`gevsim.metrics.attribution.mean_interval`). The rejection ratio is the
+ratio of the mean flicker-induced rates of the registry's headline pair
+(:data:`~gevsim.emulation.emulators.HEADLINE`: DVS over gradient) with Fieller's
+interval from the paired repeats (:func:`~gevsim.metrics.attribution.ratio_interval`).
 
 Phase-locked estimate (no subtraction): the event times of all repeats are
 folded on the swept lamp's period and the RMS of the lamp-locked rate
@@ -29,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gevsim.emulation.emulators import EMULATORS
+from gevsim.emulation.emulators import EMULATORS, HEADLINE
 from gevsim.metrics.attribution import Interval, mean_interval, phase_locked_from_histogram, ratio_interval
 
 CONFIDENCE = 0.95
@@ -107,12 +108,13 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
         maps[f"{e}_flicker_per_pixel_s"] = (np.mean([a[f"pixels/run/{e}"].astype(float)
                                                      - a[f"pixels/no_flicker/{e}"] for a in arrays], axis=0)
                                             / duration)
-    if "dvs" in flicker and "gradient" in flicker:
-        ratio = ratio_interval(flicker["dvs"], flicker["gradient"], confidence=CONFIDENCE)
+    baseline, candidate = HEADLINE
+    if baseline in flicker and candidate in flicker:
+        ratio = ratio_interval(flicker[baseline], flicker[candidate], confidence=CONFIDENCE)
         _put(row, "flicker_rejection_ratio", ratio)
         row["flicker_rejection_ratio_method"] = ratio.method
         row["flicker_rejection_ratio_at_least"] = ratio_lower_bound(row, len(records), pixels * duration)
-        if row["dvs_bus_limited"] or row["gradient_bus_limited"]:  # the counts measure the bus: no ratio to plot
+        if row[f"{baseline}_bus_limited"] or row[f"{candidate}_bus_limited"]:  # the counts measure the bus
             for k in ("", "_low", "_high"):
                 row[f"flicker_rejection_ratio{k}"] = float("nan")
             row["flicker_rejection_ratio_at_least"] = None
@@ -128,8 +130,8 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
                 _put(row, f"{method}_{k}", mean_interval(values, confidence=CONFIDENCE))
             else:
                 row[f"{method}_{k}"] = float("nan")
-    if "dvs_spectrum" in first:
-        row["dvs_spectrum"] = first["dvs_spectrum"]
+    if f"{baseline}_spectrum" in first:
+        row[f"{baseline}_spectrum"] = first[f"{baseline}_spectrum"]
     row["seconds"] = float(sum(r["seconds"] for r in records))
     row["gevsim"] = first["gevsim"]
     return row, maps
@@ -143,10 +145,11 @@ def ratio_lower_bound(row: dict, repeats: int, pixel_seconds: float) -> float | 
     interval holds zero or Fieller's interval is bounded."""
     if row["flicker_rejection_ratio_method"] != "fieller (unbounded)":
         return None
-    dvs_low = row["dvs_flicker_per_pixel_s_low"]
-    if not dvs_low > 0:
+    baseline, candidate = HEADLINE
+    low = row[f"{baseline}_flicker_per_pixel_s_low"]
+    if not low > 0:
         return None
-    return float(dvs_low / max(row["gradient_flicker_per_pixel_s_high"], 3.0 / (repeats * pixel_seconds)))
+    return float(low / max(row[f"{candidate}_flicker_per_pixel_s_high"], 3.0 / (repeats * pixel_seconds)))
 
 
 def map_regions(dominant: np.ndarray, chip_lux: np.ndarray) -> dict[str, np.ndarray]:

@@ -46,7 +46,7 @@ import numpy as np
 
 from gevsim import __version__
 from gevsim._validate import FieldError, real_list
-from gevsim.config import TomlReader, read_toml
+from gevsim.config import TomlReader, load_table, resolve_relative
 from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
@@ -100,8 +100,8 @@ def _names(r: TomlReader, table: dict, where: str, key: str, default, check, *, 
         r.fail(f"{where}.{key}", f"expected a non-empty list of names, got {value!r}")
     out = []
     for v in value:
-        if base is not None and v.endswith(".toml") and not Path(v).is_absolute():
-            v = str((base / v).resolve())
+        if base is not None:
+            v = resolve_relative(v, base)
         try:
             check(v)
         except ConfigError as exc:
@@ -149,9 +149,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     from gevsim.render import load
 
     path = Path(path)
-    raw = read_toml(path, what="dataset config")
-    r = TomlReader(str(path))
-    check_keys(raw, ("dataset",), source=r.source, where="")
+    raw, r = load_table(path, what="dataset config", tables=("dataset",))
     ds = r.table(raw, "dataset")
     check_keys(ds, KEYS, source=r.source, where="dataset")
     emulators = _names(r, ds, "dataset", "emulators", list(DatasetConfig.emulators),

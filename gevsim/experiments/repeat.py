@@ -31,7 +31,7 @@ import numpy as np
 
 import gevsim
 from gevsim._portable import weighted_sum
-from gevsim.emulation.emulators import EMULATORS
+from gevsim.emulation.emulators import EMULATORS, HEADLINE
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments.study import Study, flicker_group, run_config, run_id
 from gevsim.io import atomic_path, atomic_write_text
@@ -114,7 +114,6 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     from gevsim.emulation import prepare, run
     from gevsim.emulation.driver import render_noise_floor
     from gevsim.emulation.summary import summarize
-    from gevsim.evaluation import reconstruct_file
 
     if threads is not None:  # in an executor's worker
         import logging
@@ -161,28 +160,12 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
               "render": _render_quality(setup.render_quality), "metrics": {}}
     if repeat == 0:
         record["strip"] = record_strip
-    for method in study.base["methods"]:
-        if METHODS[method].needs_aps and not cfg.aps:  # the sensor has no APS: nothing to fuse
-            record["metrics"][method] = {k: float("nan") for k in ("mse", "ssim", "psnr")}
-            continue
-        rec, _, _ = reconstruct_file(folder / "run.h5", method, reference="no-flicker")
-        record["metrics"][method] = {k: float(v) for k, v in rec.mean_metrics().items()}
-    if "dvs" in study.base["emulators"] and repeat == 0:
-        f, amp = event_spectrum(folded["run"]["dvs"]["rate"])
-        record["dvs_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
-    mean_basis = setup.current_basis.mean(axis=0)  # (K, H, W), A per unit waveform
-    assert setup.chip_lux_per_a is not None  # prepare() sets it
-    data: dict[str, Any] = {
-            "mean_current_a": mean_basis.sum(axis=0),
-            "chip_lux": weighted_sum(np.asarray(setup.chip_lux_per_a)[None, :], mean_basis.reshape(len(mean_basis), -1))
-            .reshape(mean_basis.shape[1:]),
-            "dominant_group": np.argmax(mean_basis, axis=0).astype(np.int16),
-            "group_names": np.array(m.group_names)}
-    for variant, per_emulator in folded.items():
-        for e, fold in per_emulator.items():
-            data[f"pixels/{variant}/{e}"] = fold["pixels"].astype(np.int32)
-            for g, hist in fold["phases"].items():
-                data[f"phases/{variant}/{e}/{g}"] = hist
+    record["metrics"] = _scores(folder / "run.h5", study.base["methods"], aps=cfg.aps)
+    baseline = HEADLINE[0]  # the spectrum of the stream the report compares against
+    if baseline in study.base["emulators"] and repeat == 0:
+        f, amp = event_spectrum(folded["run"][baseline]["rate"])
+        record[f"{baseline}_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
+    data = _arrays(setup, folded)
     with atomic_path(arrays) as tmp:
         with open(tmp, "wb") as fh:
             np.savez_compressed(fh, **data)
@@ -192,6 +175,40 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     if not keep_files:
         shutil.rmtree(folder, ignore_errors=True)
     return record
+
+
+def _scores(path: Path, methods: list[str], *, aps: bool) -> dict[str, dict[str, float]]:
+    """Each method's mean MSE/SSIM/PSNR on the run's file against the flicker-free reference (NaN for a
+    method that needs APS frames the sensor does not have)."""
+    from gevsim.evaluation import reconstruct_file
+
+    scores = {}
+    for method in methods:
+        if METHODS[method].needs_aps and not aps:  # the sensor has no APS: nothing to fuse
+            scores[method] = {k: float("nan") for k in ("mse", "ssim", "psnr")}
+            continue
+        rec, _, _ = reconstruct_file(path, method, reference="no-flicker")
+        scores[method] = {k: float(v) for k, v in rec.mean_metrics().items()}
+    return scores
+
+
+def _arrays(setup: Any, folded: dict[str, dict[str, dict]]) -> dict[str, Any]:
+    """The repeat's maps (mean photocurrent, chip illuminance, dominant light group) and its folded events
+    (per-pixel counts and phase histograms per variant and emulator): what ``r<k>.npz`` holds."""
+    mean_basis = setup.current_basis.mean(axis=0)  # (K, H, W), A per unit waveform
+    assert setup.chip_lux_per_a is not None  # prepare() sets it
+    data: dict[str, Any] = {
+            "mean_current_a": mean_basis.sum(axis=0),
+            "chip_lux": weighted_sum(np.asarray(setup.chip_lux_per_a)[None, :], mean_basis.reshape(len(mean_basis), -1))
+            .reshape(mean_basis.shape[1:]),
+            "dominant_group": np.argmax(mean_basis, axis=0).astype(np.int16),
+            "group_names": np.array(setup.manifest.group_names)}
+    for variant, per_emulator in folded.items():
+        for e, fold in per_emulator.items():
+            data[f"pixels/{variant}/{e}"] = fold["pixels"].astype(np.int32)
+            for g, hist in fold["phases"].items():
+                data[f"phases/{variant}/{e}/{g}"] = hist
+    return data
 
 
 #: The picture of a run's events (repeat 0) beside its repeats: ``runs/<id>/events.png`` (``gevsim view``).

@@ -17,20 +17,20 @@ from pathlib import Path
 import numpy as np
 
 import gevsim
-from gevsim.emulation.emulators import EMULATORS
+from gevsim.emulation.emulators import EMULATORS, HEADLINE
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments import study_plots
 from gevsim.experiments.aggregate import agreement, interval_of, row_emulators, row_methods
 from gevsim.experiments.study import Study, run_id
 
+BASELINE, CANDIDATE = HEADLINE  # the pair the report compares (baseline over candidate: DVS, gradient)
+BASE_LABEL, CAND_LABEL = EMULATORS[BASELINE].label, EMULATORS[CANDIDATE].label
+
 
 def flat_rows(rows: list[dict]) -> list[dict]:
     """Rows without nested values (spectra), lists as strings: one CSV line per run."""
-    out = []
-    for row in rows:
-        out.append({k: (json.dumps(v) if isinstance(v, list) else v) for k, v in row.items()
-                    if not isinstance(v, dict)})
-    return out
+    return [{k: (json.dumps(v) if isinstance(v, list) else v) for k, v in row.items() if not isinstance(v, dict)}
+            for row in rows]
 
 
 def write_table(folder: Path, rows: list[dict]) -> None:
@@ -67,7 +67,7 @@ def ratio_text(row: dict) -> str:
     iv = interval_of(row, "flicker_rejection_ratio")
     if iv is None:
         return "-"
-    limited = [EMULATORS[e].label for e in ("dvs", "gradient") if row.get(f"{e}_bus_limited")]
+    limited = [EMULATORS[e].label for e in HEADLINE if row.get(f"{e}_bus_limited")]
     if limited:
         return (f"not measurable: the readout limits {' and '.join(limited)} (its bus delivers at most what it "
                 "carries: flicker cannot add events to a full bus)")
@@ -75,10 +75,10 @@ def ratio_text(row: dict) -> str:
         return iv.format()
     bound = row.get("flicker_rejection_ratio_at_least")
     if bound:
-        ceiling = max(row["gradient_flicker_per_pixel_s_high"], 0.0)
-        return (f"at least {bound:.3g} (one-sided; the gradient flicker-induced rate is not distinguishable from "
-                f"zero, at most {ceiling:.3g} ev/px/s)")
-    return "not determined (DVS/gradient intervals hold zero: Fieller's set is unbounded)"
+        ceiling = max(row[f"{CANDIDATE}_flicker_per_pixel_s_high"], 0.0)
+        return (f"at least {bound:.3g} (one-sided; the {CAND_LABEL} flicker-induced rate is not distinguishable "
+                f"from zero, at most {ceiling:.3g} ev/px/s)")
+    return f"not determined ({BASE_LABEL}/{CAND_LABEL} intervals hold zero: Fieller's set is unbounded)"
 
 
 def _label(row: dict, study: Study) -> str:
@@ -94,25 +94,25 @@ def answer(rows: list[dict], study: Study) -> list[str]:
     parts = []
     for scene in scenes:
         sel = [r for r in rows if r.get("scene", study.base["scene"]) == scene]
-        best = max(sel, key=lambda r: r["dvs_flicker_per_pixel_s_low"])  # the clearest flicker
+        best = max(sel, key=lambda r: r[f"{BASELINE}_flicker_per_pixel_s_low"])  # the clearest flicker
         lamp = best["flicker_group"] + (f" at {best['flicker_frequency_hz']:g} Hz" if best["flicker_frequency_hz"]
                                         else " (steady)")
         where = ", ".join(f"{a}={best.get(a)}" for a in study.axes if a != "scene")
-        parts.append(f"in {scene} ({lamp}; {where}) DVS events carry {fmt(best, 'dvs_flicker_per_pixel_s')} "
-                     f"flicker-induced ev/px/s and gradient events {fmt(best, 'gradient_flicker_per_pixel_s')}, "
-                     f"a rejection ratio of {ratio_text(best)}")
-    first = "Gradient events against DVS, 95 % intervals over repeated noise seeds: " + "; ".join(parts) + "."
-    noise = {e: float(np.median([r[f"{e}_noise_per_pixel_s"] for r in rows])) for e in ("dvs", "gradient")}
-    worst = max(rows, key=lambda r: r["gradient_noise_per_pixel_s"])
-    second = (f"The cost in noise: the median noise-induced rate is {noise['gradient']:.3g} ev/px/s for gradient "
-              f"events against {noise['dvs']:.3g} for DVS, up to {fmt(worst, 'gradient_noise_per_pixel_s')} "
-              f"({_label(worst, study)}).")
+        parts.append(f"in {scene} ({lamp}; {where}) {BASE_LABEL} events carry "
+                     f"{fmt(best, f'{BASELINE}_flicker_per_pixel_s')} flicker-induced ev/px/s and {CAND_LABEL} "
+                     f"events {fmt(best, f'{CANDIDATE}_flicker_per_pixel_s')}, a rejection ratio of {ratio_text(best)}")
+    first = (f"{CAND_LABEL[:1].upper()}{CAND_LABEL[1:]} events against {BASE_LABEL}, 95 % intervals over repeated "
+             "noise seeds: " + "; ".join(parts) + ".")
+    noise = {e: float(np.median([r[f"{e}_noise_per_pixel_s"] for r in rows])) for e in HEADLINE}
+    worst = max(rows, key=lambda r: r[f"{CANDIDATE}_noise_per_pixel_s"])
+    second = (f"The cost in noise: the median noise-induced rate is {noise[CANDIDATE]:.3g} ev/px/s for {CAND_LABEL} "
+              f"events against {noise[BASELINE]:.3g} for {BASE_LABEL}, up to "
+              f"{fmt(worst, f'{CANDIDATE}_noise_per_pixel_s')} ({_label(worst, study)}).")
     third = ""
     methods = row_methods(rows, scored=True)
     by_stream: dict[str, list[str]] = {}
     for m in methods:
-        stream = "gradient" if METHODS[m].emulator.startswith("gradient") else "brightness"
-        by_stream.setdefault(stream, []).append(m)
+        by_stream.setdefault(EMULATORS[METHODS[m].emulator].kind, []).append(m)
     if len(by_stream) == 2:
         texts = []
         for stream, ms in by_stream.items():
@@ -150,16 +150,16 @@ def findings(rows: list[dict], study: Study) -> list[str]:
                        "there the phase-locked figure is an upper estimate.")
     if "hysteresis_ln" in rows[0]:
         for h in sorted({r["hysteresis_ln"] for r in rows}):
-            sel = [r["gradient_noise_per_pixel_s"] for r in rows if r["hysteresis_ln"] == h]
-            out.append(f"With hysteresis {h} ln: gradient noise-induced rate {np.median(sel):.3g} ev/px/s (median "
-                       "over runs).")
+            sel = [r[f"{CANDIDATE}_noise_per_pixel_s"] for r in rows if r["hysteresis_ln"] == h]
+            out.append(f"With hysteresis {h} ln: {CAND_LABEL} noise-induced rate {np.median(sel):.3g} ev/px/s "
+                       "(median over runs).")
     return out
 
 
 def map_findings(rows: list[dict]) -> list[str]:
     """Where flicker events come from: shares at lamp-region borders and in the dimmest quarter."""
     out = []
-    for e in [e for e in row_emulators(rows) if e.startswith("gradient") or e == "dvs"]:
+    for e in [e for e in row_emulators(rows) if EMULATORS[e].kind in {EMULATORS[h].kind for h in HEADLINE}]:
         sel = [r for r in rows if r.get(f"{e}_flicker_border_share") is not None
                and (iv := interval_of(r, f"{e}_flicker_per_pixel_s")) is not None and iv.low > 0]
         if not sel:
@@ -229,9 +229,9 @@ def key_table(rows: list[dict], study: Study) -> str:
     """Markdown table: the sweep parameters and every headline figure with its 95 % interval."""
     emulators = row_emulators(rows)
     methods = row_methods(rows, scored=True)
-    head = (list(study.axes) + [f"{e} flicker ev/px/s" for e in emulators] + ["DVS/gradient ratio"]
+    head = (list(study.axes) + [f"{e} flicker ev/px/s" for e in emulators] + [f"{BASE_LABEL}/{CAND_LABEL} ratio"]
             + [f"{e} lamp-locked RMS ev/px/s" for e in emulators if f"{e}_phase_locked_per_pixel_s" in rows[0]]
-            + [f"{e} noise ev/px/s" for e in ("dvs", "gradient") if e in emulators]
+            + [f"{e} noise ev/px/s" for e in HEADLINE if e in emulators]
             + [f"{m} SSIM" for m in methods] + ["render spp", "render ln error"])
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for row in rows:
@@ -240,7 +240,7 @@ def key_table(rows: list[dict], study: Study) -> str:
         cells += [ratio_text(row)]
         cells += [fmt(row, f"{e}_phase_locked_per_pixel_s") for e in emulators
                   if f"{e}_phase_locked_per_pixel_s" in rows[0]]
-        cells += [flicker_cell(row, e, "noise") for e in ("dvs", "gradient") if e in emulators]
+        cells += [flicker_cell(row, e, "noise") for e in HEADLINE if e in emulators]
         cells += [fmt(row, f"{m}_ssim") for m in methods]
         cells += [_render_spp(row), _render_error(row)]
         lines.append("| " + " | ".join(cells) + " |")
@@ -269,11 +269,12 @@ METHOD_TEXT = (
     "flicker), with an ideal pixel as well, and the render-noise floor (ideal pixel, lamps at their mean, the "
     "rendered images' Monte Carlo error redrawn at the lamp frequency). Per repeat, flicker-induced = run minus "
     "no-flicker, noise-induced = no-flicker minus ideal, render-noise floor = floor run minus ideal; the figures "
-    "are their means over repeats with 95 % Student t intervals. The rejection ratio is the ratio of the DVS and "
-    "gradient mean flicker-induced rates with Fieller's 95 % interval from the paired repeats (where the gradient "
-    "rate is not distinguishable from zero Fieller's set is unbounded, and a one-sided lower bound is given: the "
-    "DVS interval's low end over the gradient interval's high end, or over 3 events in all repeats when none "
-    "was counted). The phase-locked estimate needs no subtraction: the event times of all repeats are folded on "
+    "are their means over repeats with 95 % Student t intervals. The rejection ratio is the ratio of the "
+    f"{BASE_LABEL} and {CAND_LABEL} mean flicker-induced rates with Fieller's 95 % interval from the paired repeats "
+    f"(where the {CAND_LABEL} rate is not distinguishable from zero Fieller's set is unbounded, and a one-sided "
+    f"lower bound is given: the {BASE_LABEL} interval's low end over the {CAND_LABEL} interval's high end, or over "
+    "3 events in all repeats when none was counted). The phase-locked estimate needs no subtraction: the event "
+    "times of all repeats are folded on "
     "the lamp period and the RMS of the rate modulation carried by the first 4 harmonics is measured, Poisson "
     "bias removed, with a bootstrap interval and a p-value against uniform phases; the same statistic of the "
     "flicker-free counterfactual is its control. It measures the lamp-locked part of the rate, not its mean, so "
@@ -381,7 +382,7 @@ def comparison_table(rows: list[dict], study: Study) -> str:
     with 95 % intervals, and the best reconstruction's SSIM (the demo's table)."""
     lines = []
     for row in rows:
-        lines.append(f"\n{_label(row, study)} ({row['repeats']} repeats; DVS/gradient {ratio_text(row)})")
+        lines.append(f"\n{_label(row, study)} ({row['repeats']} repeats; {BASE_LABEL}/{CAND_LABEL} {ratio_text(row)})")
         if "render_se_ln" in row:
             lines.append(f"  render: {_render_spp(row)} spp, ln error {_render_error(row)}")
         lines.append(f"  {'emulator':12s} {'events/s':>10s}  {'flicker ev/px/s [95 %]':52s} "

@@ -67,9 +67,9 @@ from pathlib import Path
 
 from gevsim import __version__
 from gevsim._validate import FieldError
-from gevsim.config import TomlReader, read_toml
+from gevsim.config import TomlReader, load_table, resolve_relative
 from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig
-from gevsim.emulation.emulators import EMULATORS, check_emulator_list
+from gevsim.emulation.emulators import EMULATORS, PARAMS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.illumination.base import MAX_FREQUENCY_HZ
@@ -112,23 +112,43 @@ class Study:
         return [dict(zip(names, values)) for values in itertools.product(*(self.axes[n] for n in names))]
 
 
-def _beside(value: object, study_file: Path) -> object:
-    """A relative ``.toml`` path in a study file, taken from the study file's folder (as datasets do), not
-    from the working directory: two folders' studies naming ``my.toml`` name different presets."""
-    if isinstance(value, str) and value.endswith(".toml") and not Path(value).is_absolute():
-        return str((study_file.parent / value).resolve())
-    return value
-
-
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study config; errors name the file and key."""
+    """Read and validate a study config; errors name the file and key. Relative ``.toml`` paths (sensor
+    presets, scene manifests) are taken from the study file's folder, as datasets do, not from the working
+    directory: two folders' studies naming ``my.toml`` name different presets."""
     path = Path(path)
-    raw = read_toml(path, what="study config")
-    src = str(path)
-    r = TomlReader(src)
-    check_keys(raw, ("study", "sweep", "report"), source=src, where="")
+    raw, r = load_table(path, what="study config", tables=("study", "sweep", "report"))
     st = r.table(raw, "study")
-    check_keys(st, STUDY_KEYS, source=src, where="study")
+    emulators = _check_study_table(st, r)
+    sweep = r.table(raw, "sweep")
+    _check_sweep(sweep, r)
+    if isinstance(sweep.get("sensor"), list):
+        sweep["sensor"] = [resolve_relative(v, path.parent) for v in sweep["sensor"]]
+    for method in r.list(st, "methods", "study.", ["dct", "direct"]):
+        try:
+            needs = check_method(method).emulator
+        except ValueError as exc:
+            r.fail("study.methods", str(exc))
+        if needs not in emulators:
+            r.fail("study.methods", f"method {method!r} needs the {needs!r} emulator in study.emulators")
+    check_render_overrides(r.table(st, "render", "study."), r, "study.render")
+    rep = r.table(raw, "report")
+    check_keys(rep, ("x", "lines"), source=r.source, where="report")
+    for key in ("x", "lines"):
+        if key in rep and not isinstance(rep[key], str):  # a list or table is not hashable, nor an axis
+            r.fail(f"report.{key}", f"expected the name of a sweep axis, got {rep[key]!r}")
+        if key in rep and rep[key] not in sweep:
+            r.fail(f"report.{key}", f"{rep[key]!r} is not a sweep axis{suggest(str(rep[key]), sweep)}")
+    base = _base(st, emulators, r, path.parent)
+    study = Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep),
+                  source=r.source, text=path.read_text(), description=str(st.get("description", "")))
+    _check_runs(study, r)
+    return study
+
+
+def _check_study_table(st: dict, r: TomlReader) -> tuple[str, ...]:
+    """``[study]``'s keys, scene and flicker group; returns its emulators."""
+    check_keys(st, STUDY_KEYS, source=r.source, where="study")
     if not isinstance(st.get("scene"), str):
         r.fail("study.scene", "missing: a scene name or manifest path" if "scene" not in st else
                f"expected a scene name or manifest path, got {st['scene']!r}")
@@ -138,11 +158,14 @@ def load_study(path: str | Path) -> Study:
         r.fail("study.flicker_group", "missing: the light group whose waveform the sweep changes "
                                       "(a name, or a table scene = group)")
     try:
-        emulators = check_emulator_list(st.get("emulators", list(EMULATORS)))
+        return check_emulator_list(st.get("emulators", list(EMULATORS)))
     except ValueError as exc:
         r.fail("study.emulators", str(exc))
-    sweep = r.table(raw, "sweep")
-    check_keys(sweep, AXES, source=src, where="sweep")
+
+
+def _check_sweep(sweep: dict, r: TomlReader) -> None:
+    """Each sweep axis a non-empty list of values of its type and range."""
+    check_keys(sweep, AXES, source=r.source, where="sweep")
     for axis, values in sweep.items():
         if not isinstance(values, list) or not values:
             r.fail(f"sweep.{axis}", f"expected a non-empty list, got {values!r}")
@@ -178,27 +201,14 @@ def load_study(path: str | Path) -> Study:
         for v in sweep.get(axis, []):
             if not isinstance(v, str):
                 r.fail(f"sweep.{axis}", f"expected {what}, got {v!r}")
-    if isinstance(sweep.get("sensor"), list):
-        sweep["sensor"] = [_beside(v, path) for v in sweep["sensor"]]
-    for method in r.list(st, "methods", "study.", ["dct", "direct"]):
-        try:
-            needs = check_method(method).emulator
-        except ValueError as exc:
-            r.fail("study.methods", str(exc))
-        if needs not in emulators:
-            r.fail("study.methods", f"method {method!r} needs the {needs!r} emulator in study.emulators")
-    check_render_overrides(r.table(st, "render", "study."), r, "study.render")
-    rep = r.table(raw, "report")
-    check_keys(rep, ("x", "lines"), source=src, where="report")
-    for key in ("x", "lines"):
-        if key in rep and not isinstance(rep[key], str):  # a list or table is not hashable, nor an axis
-            r.fail(f"report.{key}", f"expected the name of a sweep axis, got {rep[key]!r}")
-        if key in rep and rep[key] not in sweep:
-            r.fail(f"report.{key}", f"{rep[key]!r} is not a sweep axis{suggest(str(rep[key]), sweep)}")
-    grid = TimeGrid.from_section(st, source=src, where="study", base=STUDY_TIME)
+
+
+def _base(st: dict, emulators: tuple[str, ...], r: TomlReader, folder: Path) -> dict:
+    """The settings every run shares: ``[study]``'s time grid, seed, methods, render and repeats."""
+    grid = TimeGrid.from_section(st, source=r.source, where="study", base=STUDY_TIME)
     if not grid.frame_rate_hz > 0:  # reconstructions are scored at the ground-truth frames
         r.fail("study.frame_rate_hz", f"must be > 0 (frames score the reconstructions), got {grid.frame_rate_hz}")
-    base = {"scene": st["scene"], "sensor": _beside(st.get("sensor", "davis346"), path),
+    base = {"scene": st["scene"], "sensor": resolve_relative(st.get("sensor", "davis346"), folder),
             "emulators": list(emulators),
             "flicker_group": st["flicker_group"], "seed": r.number(st, "seed", "study", 0, minimum=0, integer=True),
             **dataclasses.asdict(grid),
@@ -212,10 +222,7 @@ def load_study(path: str | Path) -> Study:
         r.fail(f"study.{err.field}", str(err))
     if not isinstance(base["sensor"], str):
         r.fail("study.sensor", f"expected a sensor preset name or .toml path, got {base['sensor']!r}")
-    study = Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep), source=src,
-                  text=path.read_text(), description=str(st.get("description", "")))
-    _check_runs(study, r)
-    return study
+    return base
 
 
 def _message(exc: ConfigError) -> str:
@@ -250,11 +257,10 @@ def _check_runs(study: Study, r: TomlReader) -> None:
     runs = study.runs()
     for k, params in enumerate(runs):
         where = f"run {k + 1} of {len(runs)}: {json.dumps(params)}"
-        thresholds = params.get("thresholds_ln", (0.05, 0.1, 0.2))
-        hysteresis = params.get("hysteresis_ln", 0.0)
-        if hysteresis >= min(thresholds):
-            r.fail("sweep.hysteresis_ln", f"hysteresis_ln = {hysteresis} must be below the smallest threshold "
-                                          f"{min(thresholds)} ({where})")
+        try:
+            emulator_params(params)
+        except FieldError as err:
+            r.fail(f"sweep.{err.field}", f"{err} ({where})")
         overrides = {a: params[a] for a in SENSOR_AXES if a in params}
         if len(overrides) > 1:
             try:
@@ -282,12 +288,20 @@ def waveform_spec(params: dict) -> dict | None:
     return swept_spec(kind, float(params.get("frequency_hz", 100.0)), params)
 
 
+def emulator_params(params: dict) -> dict:
+    """The emulators' parameters of a run (:data:`~gevsim.emulation.emulators.PARAMS`; swept ones from
+    ``params``, the others their defaults), as :class:`~gevsim.emulation.EmulationConfig` fields; a bad
+    combination raises :class:`~gevsim._validate.FieldError`."""
+    out: dict = {}
+    for cls in PARAMS:
+        out.update(dataclasses.asdict(cls(**{f.name: params[f.name] for f in dataclasses.fields(cls)
+                                             if f.name in params})))
+    return out
+
+
 def run_scene(study: Study, params: dict) -> str:
     """The scene of a run: a built-in name, or a manifest path (relative ones resolved from the study file)."""
-    scene = params.get("scene", study.base["scene"])
-    if scene.endswith(".toml") and not Path(scene).is_absolute():
-        scene = str((Path(study.source).parent / scene).resolve())
-    return scene
+    return resolve_relative(params.get("scene", study.base["scene"]), Path(study.source).parent)
 
 
 def run_config(study: Study, params: dict, *, seed: int | None = None) -> EmulationConfig:
@@ -304,8 +318,7 @@ def run_config(study: Study, params: dict, *, seed: int | None = None) -> Emulat
         aps=(any(METHODS[m].needs_aps for m in b["methods"])
              and load_preset(params.get("sensor", b["sensor"])).aps is not None),
         aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
-        thresholds_ln=tuple(params.get("thresholds_ln", (0.05, 0.1, 0.2))),
-        hysteresis_ln=float(params.get("hysteresis_ln", 0.0)),
+        **emulator_params(params),
         sensor_overrides={k: params[k] for k in SENSOR_AXES if k in params},
         light_scale=float(params.get("light_scale", 1.0)),
         group_scale={group: float(params.get("flicker_scale", 1.0))},
