@@ -344,3 +344,20 @@ def test_emulate_without_frames_prints_no_nan(tmp_path, capsys, scene):
     assert cli.main(run_config("emulate", path, tmp_path)) == 0
     out = capsys.readouterr().out
     assert "nan" not in out and out.splitlines()[1].split()[4] == "-"
+
+
+def test_every_loader_shares_one_prelude(tmp_path):
+    from gevsim.config import load_table, resolve_relative
+
+    path = tmp_path / "a.toml"
+    path.write_text("[one]\nx = 1\n[two]\n")
+    raw, reader = load_table(path, what="test config", tables=("one", "two"))
+    assert raw == {"one": {"x": 1}, "two": {}} and reader.source == str(path)
+    with pytest.raises(ConfigError, match="unknown key 'two'.*allowed: one") as err:
+        load_table(path, what="test config", tables=("one",))
+    assert err.value.source == str(path)
+    with pytest.raises(ConfigError, match="no such test config"):
+        load_table(tmp_path / "none.toml", what="test config", tables=())
+    assert resolve_relative("sub/p.toml", tmp_path) == str((tmp_path / "sub" / "p.toml").resolve())
+    assert resolve_relative("davis346", tmp_path) == "davis346"  # a built-in name
+    assert resolve_relative("/abs/p.toml", tmp_path) == "/abs/p.toml" and resolve_relative(3, tmp_path) == 3

@@ -214,3 +214,26 @@ def test_direct_construction_raises_value_error_naming_value():
 def test_waveforms_are_hashable_values():
     assert hash(Table([0, 1], [1, 2])) == hash(Table((0.0, 1.0), (1.0, 2.0)))
     assert Fluorescent() == Fluorescent(50.0) and Fluorescent() != Fluorescent(60.0)
+
+
+def test_lamp_types_know_how_studies_sweep_and_datasets_draw_them():
+    from gevsim.experiments.dataset import Randomize
+    from gevsim.illumination.spec import RANDOM_WAVEFORMS, SWEPT_WAVEFORMS, random_spec, swept_spec
+
+    assert SWEPT_WAVEFORMS == RANDOM_WAVEFORMS == tuple(n for n in WAVEFORMS if n != "table")
+    for name in SWEPT_WAVEFORMS:  # each spec is a valid table whose light flickers at the swept frequency
+        wave = from_spec(swept_spec(name, 240.0, {"duty": 0.3, "modulation": 0.5}))
+        assert wave.period_s is None if name == "dc" else wave.period_s == pytest.approx(1 / 240.0)
+    assert swept_spec("fluorescent", 100.0, {"modulation": 0.5}) == {"type": "fluorescent", "mains_hz": 50.0,
+                                                                       "modulation": 0.5}
+    ranges = Randomize(waveforms=RANDOM_WAVEFORMS, mains_hz=(50.0, 60.0))
+    for name in RANDOM_WAVEFORMS:
+        a, b = (random_spec(name, np.random.default_rng(3), ranges, phase_rad=1.0) for _ in range(2))
+        assert a == b and isinstance(from_spec(a), WAVEFORMS[name])
+    rng = np.random.default_rng(3)
+    drawn = random_spec("pwm", rng, ranges, phase_rad=1.0)  # log-uniform frequency, then the duty: 2 draws
+    check = np.random.default_rng(3)
+    check.uniform(), check.uniform()
+    assert rng.uniform() == check.uniform() and 100.0 <= drawn["frequency_hz"] <= 2000.0
+    with pytest.raises(NotImplementedError):
+        Table.swept(100.0, {})
