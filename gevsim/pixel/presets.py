@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gevsim.config import TomlReader, read_toml, resource_tomls
+from gevsim.config import load_table, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.pixel.aps import ApsParams
 from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams, ReadoutParams
@@ -169,14 +169,12 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
     """Load a preset by name (``dvs128``, ``davis346``, ``imx636``, ``ideal``) or TOML path."""
     path = preset_path(name_or_path)
     src = str(path)
-    raw = read_toml(path, what="sensor preset file")
-    check_keys(raw, TABLES, source=src, where="")
+    raw, r = load_table(path, what="sensor preset file", tables=TABLES)
     for table in ("sensor", "photoreceptor", "noise", "events"):
         if not isinstance(raw.get(table), dict):
             raise ConfigError(f"missing table [{table}]", source=src, key=table)
     sensor = dict(raw["sensor"])
     check_keys(sensor, SENSOR_KEYS, source=src, where="sensor")
-    r = TomlReader(src)
     for key in ("width", "height"):  # at most 1e5 px a side, beyond any sensor (IMX636: 1280 x 720)
         r.number(sensor, key, "sensor", positive=True, integer=True, maximum=100_000)
     for key, upper in (("pixel_pitch_m", 1e-3), ("fill_factor", 1.0)):
