@@ -37,24 +37,32 @@ def test_every_key_has_one_owner_and_every_entry_is_wired(table):
 
 
 @pytest.mark.parametrize("preset", sorted(preset_names()))
-def test_the_ideal_pixel_has_every_mechanism_off(preset):
+def test_the_ideal_pixel_has_every_mechanism_off_but_the_keys_it_says_why_it_keeps(preset):
     sensor = load_preset(preset)
     ideal = sensor.ideal()
-    assert mechanisms_on(ideal.noise, ideal.events) == []
+    tables = {"noise": (sensor.noise, ideal.noise), "events": (sensor.events, ideal.events)}
+    for name, m in NOISE_MECHANISMS.items():
+        real, ideal_table = tables[m.table]
+        for key, off in m.off.items():
+            if key in m.ideal_keeps:
+                assert len(m.ideal_keeps[key]) > 20, f"{name}.{key}: say why the ideal pixel keeps it"
+                assert getattr(ideal_table, key) == getattr(real, key)
+            else:
+                assert getattr(ideal_table, key) == off, f"{name}.{key} is on in the ideal pixel"
     assert ideal.noise.dark_current_a == sensor.noise.dark_current_a  # the log floor is not a noise
     assert ideal.events.threshold_on_ln == sensor.events.threshold_on_ln
     plan = kernel_noise(ideal.noise, ideal.photoreceptor.volts_per_ln)
     assert not plan.on_photoreceptor_pole and plan.poles()[0].size == 0
 
 
-def test_davis346_has_its_mechanisms_on_and_ideal_turns_off_light_leak_and_offsets():
+def test_davis346_mechanisms_and_what_its_ideal_keeps():
     sensor = load_preset("davis346")
     on = set(mechanisms_on(sensor.noise, sensor.events))
     assert {"shot", "read", "leak", "comparator_offset", "dc_offset", "dark_current", "prnu"} <= on
     assert "flicker" not in on
-    # Before the registry, ideal() kept leak_light_hz_per_a and comparator_offset_v (issue 33).
-    assert sensor.ideal().events.leak_light_hz_per_a == 0.0
-    assert sensor.ideal().events.comparator_offset_v == 0.0
+    ideal = sensor.ideal()
+    assert set(mechanisms_on(ideal.noise, ideal.events)) == {"leak", "comparator_offset"}  # stated, not silent
+    assert ideal.events.leak_rate_hz == 0.0 and ideal.events.leak_light_hz_per_a == sensor.events.leak_light_hz_per_a
 
 
 def test_kernel_coefficients_are_the_sums_of_the_entries():

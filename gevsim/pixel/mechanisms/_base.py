@@ -89,6 +89,8 @@ class Mechanism:
         output (ln, float32 of n pixels), drawn after the temporal noise's start and only when on, so
         that a preset without it draws the numbers it drew before the mechanism existed; or None.
     where : the module that implements it where neither hook applies (event circuits).
+    ideal_keeps : keys of ``off`` that :meth:`SensorPreset.ideal` leaves as the sensor has them, each with
+        why (empty: the ideal pixel has the mechanism off).
     """
 
     params: type
@@ -99,12 +101,14 @@ class Mechanism:
     temporal: Callable[[Any, float, KernelNoise], None] | None = None
     pattern: Callable[[Any, int, float, np.random.Generator], np.ndarray] | None = None
     where: str = ""
+    ideal_keeps: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
         keys = self.keys
-        if set(self.off) - set(keys):
+        if set(self.off) - set(keys) or set(self.ideal_keeps) - set(self.off):
             raise ValueError(f"{self.params.__name__}: off state names keys it does not own: "
-                             f"{sorted(set(self.off) - set(keys))}")
+                             f"{sorted(set(self.off) - set(keys))}, or ideal_keeps keys not in its off state: "
+                             f"{sorted(set(self.ideal_keeps) - set(self.off))}")
 
     @property
     def keys(self) -> tuple[str, ...]:
