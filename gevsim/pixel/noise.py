@@ -20,12 +20,11 @@ from gevsim import _portable as pm
 from gevsim.pixel.mechanisms import kernel_noise
 from gevsim.pixel.mechanisms.dark_current import dark_current_a
 from gevsim.pixel.mechanisms.flicker import flicker_noise_poles
-from gevsim.pixel.mechanisms.shot import shot_noise_factor
 from gevsim.pixel.params import NoiseParams
 from gevsim.pixel.thermal import REFERENCE_TEMPERATURE_K
 
 __all__ = ["STEP_FRACTION", "coarsest_step_s", "dark_current_a", "fixed_pattern", "flicker_noise_poles",
-           "output_noise_poles", "shot_noise_factor", "shot_noise_variance_ln"]
+           "shot_noise_variance_ln"]
 
 
 def shot_noise_variance_ln(photocurrent_a: ArrayLike, cutoff_hz: ArrayLike) -> np.ndarray:
@@ -37,13 +36,6 @@ def shot_noise_variance_ln(photocurrent_a: ArrayLike, cutoff_hz: ArrayLike) -> n
     """
     i = np.asarray(photocurrent_a, float)
     return math.pi * elementary_charge * np.asarray(cutoff_hz, float) / i
-
-
-def output_noise_poles(noise: NoiseParams, volts_per_ln: float) -> tuple[np.ndarray, np.ndarray]:
-    """All Ornstein-Uhlenbeck processes added to the output, those through the output pole first
-    (the read noise: one pole at ``read_noise_bandwidth_hz``, so its statistics do not depend on the
-    time step), then the 1/f poles (:func:`gevsim.pixel.mechanisms.kernel_noise`)."""
-    return kernel_noise(noise, volts_per_ln).poles()
 
 
 def fixed_pattern(shape: Sequence[int], noise: NoiseParams, *, rng: np.random.Generator,
