@@ -233,8 +233,9 @@ def _chain(config: EmulationConfig, setup: Setup) -> tuple:
                  for name, entry in EMULATORS.items() if name in config.emulators}
     readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
     bus = chip_share(preset.readout, emulated_px=h * w, chip_px=preset.width * preset.height)
-    readouts = {name: Readout(bus, key=int(readout_key) + EMULATORS[name].seed_slot, shape=(h, w))
-                for name in emulators}  # each stream: the sensor's own bus
+    readouts = {name: Readout(bus, key=int(readout_key) + EMULATORS[name].seed_slot, shape=(h, w),
+                              hold_s=preset.events.refractory_s if EMULATORS[name].kind != "gradient" else 0.0)
+                for name in emulators}  # each stream: the sensor's own bus; a pixel held in reset after its acknowledge
     aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))
            if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
     aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None

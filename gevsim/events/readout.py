@@ -1,8 +1,8 @@
 """Readout: a sensor's arbiter and bus deliver at most so many events per second (issue 23).
 
-Pixels that fire wait for the arbiter; events leave in request order, one every 1 / R seconds at
-the most (R = ``max_rate_eps``): event i is read at max(t_i, t_{i-1} + 1 / R). An event that would
-wait longer than ``max_delay_s`` is dropped. Under lamp flicker this decides what a DVS delivers:
+Pixels that fire wait for the arbiter (:mod:`gevsim.events.arbiter`: one request per pixel, reset
+on the acknowledge, arbitration by rows as the chip does it); one event leaves every 1 / R seconds at
+the most (R = ``max_rate_eps``). An event that would wait longer than ``max_delay_s`` is dropped. Under lamp flicker this decides what a DVS delivers:
 100 Hz flicker at 346x260 requests 65-91 Meps (sensor-physics audit), a DAVIS346 reads about 12 Meps
 (iniVation biasing guide). Delays and drops are counted, never silent, and events still queued
 when a run ends are counted as pending.
@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from gevsim.events.arbiter import ARBITERS, DELAY_BINS, delay_quantile_us, serve
 from gevsim.pixel._kernels import normal, pixel_bits, stream_key
 from gevsim.pixel.params import ReadoutParams
 
@@ -37,45 +38,22 @@ JITTER_TRUNCATION = 3.0
 __all__ = ["READOUT_STAGES", "Readout", "ReadoutParams", "Stage", "chip_share", "log_readouts"]
 
 
-@njit(cache=True)
-def _serve(t_us, service_us, max_delay_us, free_us, keep, t_out):
-    """FIFO service of events requested at t_us (sorted); returns (free_us, delayed, dropped,
-    total delay, longest delay) and fills keep (bool) and t_out (read time, whole us)."""
-    delayed = 0
-    dropped = 0
-    total = 0.0
-    longest = 0.0
-    for i in range(t_us.shape[0]):
-        t = np.float64(t_us[i])
-        start = max(t, free_us)
-        wait = start - t
-        if wait > max_delay_us:
-            keep[i] = False
-            dropped += 1
-            continue
-        keep[i] = True
-        t_out[i] = np.int64(math.floor(start))
-        free_us = start + service_us
-        if wait > 0.0:
-            delayed += 1
-            total += wait
-            longest = max(longest, wait)
-    return free_us, delayed, dropped, total, longest
-
-
 def log_readouts(summaries: dict[str, dict]) -> None:
     """Log each stream's readout counts (:meth:`Readout.summary`): WARNING where events were lost or waited
     over a millisecond, INFO for ordinary sub-millisecond bus traffic, nothing where nothing happened."""
     for stream, c in summaries.items():
         filtered = c["rate_controller_dropped"] + c["anti_flicker_dropped"]
-        if not (c["delayed"] or c["dropped"] or c["pending_at_end"] or filtered):
+        unsent = c.get("unsent", 0)
+        if not (c["delayed"] or c["dropped"] or c["pending_at_end"] or filtered or unsent):
             continue
-        lost = c["dropped"] or c["pending_at_end"] or filtered or c["max_delay_us"] > 1000.0
+        lost = c["dropped"] or c["pending_at_end"] or filtered or unsent or c["max_delay_us"] > 1000.0
         log.log(logging.WARNING if lost else logging.INFO,
-                "readout of %s: %d of %d events delayed (mean %.3g us, max %.3g us), %d dropped, %d still queued at "
-                "the end (%.3g events/s at the most), %d dropped by the rate controller, %d by the anti-flicker "
-                "filter", stream, c["delayed"], c["requested"], c["mean_delay_us"], c["max_delay_us"], c["dropped"],
-                c["pending_at_end"], c["max_rate_eps"], c["rate_controller_dropped"], c["anti_flicker_dropped"])
+                "readout of %s: %d of %d crossings delivered, %d not sent (the pixel was waiting for its "
+                "acknowledge), %d delayed (mean %.3g us, max %.3g us), %d dropped, %d pixels still waiting at the end "
+                "(%.3g events/s at the most), %d dropped by the rate controller, %d by the anti-flicker filter",
+                stream, c["delivered"], c["requested"], unsent, c["delayed"], c["mean_delay_us"], c["max_delay_us"],
+                c["dropped"], c["pending_at_end"], c["max_rate_eps"], c["rate_controller_dropped"],
+                c["anti_flicker_dropped"])
 
 
 def chip_share(params: ReadoutParams, *, emulated_px: int, chip_px: int) -> ReadoutParams:
@@ -217,66 +195,119 @@ READOUT_STAGES: dict[str, Stage] = {
 
 class Readout:
     """Stateful readout of one event stream across chunks (events of a chunk in time order): the
-    :data:`READOUT_STAGES` the params enable, then the arbiter and bus.
+    :data:`READOUT_STAGES` the params enable, then the arbiter and bus (:mod:`gevsim.events.arbiter`:
+    one request per pixel, reset on the acknowledge, the preset's ``arbitration``).
 
     Parameters
     ----------
     params : the sensor's readout.
     key : keys the latency spread (a stream's own; any integer when ``latency_jitter_s`` is 0).
-    shape : (H, W) of the pixel array (the anti-flicker filter's blocks need it).
+    shape : (H, W) of the pixel array (the arbiter's requesters and the anti-flicker filter's blocks need it).
+    hold_s : how long a pixel is held in reset after its acknowledge (the refractory period; 0: none).
     """
 
-    def __init__(self, params: ReadoutParams, *, key: int = 0, shape: tuple[int, int] | None = None):
+    def __init__(self, params: ReadoutParams, *, key: int = 0, shape: tuple[int, int] | None = None,
+                 hold_s: float = 0.0):
         self.params = params
         self.stages = {name: stage.build(params, key=key, shape=shape)
                        for name, stage in READOUT_STAGES.items() if stage.enabled(params)}
-        self.free_us = -math.inf
-        self.requested = self.delayed = self.dropped = self.pending = 0
-        self.total_delay_us = self.longest_delay_us = 0.0
+        if self.limited and shape is None:
+            raise ValueError("a readout with a rate limit needs the sensor's shape=(H, W) (one request per pixel)")
+        self.shape = None if shape is None else (int(shape[0]), int(shape[1]))
+        self.hold_us = float(hold_s) * 1e6
+        self.arbiter: _ArbiterState | None = None
+        self.requested = self.dropped = self.pending = 0
+        self.stats = np.zeros(5)  # unsent, delayed, dropped, total delay (us), longest delay (us)
+        self.hist = np.zeros(DELAY_BINS, np.int64)
 
     @property
     def limited(self) -> bool:
         return math.isfinite(self.params.max_rate_eps)
 
     def process(self, events: np.ndarray, *, end_us: int | None = None, until_us: float | None = None) -> np.ndarray:
-        """The events as read out: through the enabled stages (latency, filters), then to the bus's pace
-        (``t`` in whole us), the ones that waited too long left out, and those read after ``end_us`` (the
-        run's end) left out as pending; counts updated. ``until_us``: every later request comes at or after
-        it (the chunk's end; None: this is the last chunk)."""
+        """The events as read out: through the enabled stages (latency, filters), then through the arbiter
+        and bus (``t``: the acknowledge, in whole us; a pixel's crossings while it waits are not sent; those
+        waiting too long are dropped; those not read by ``end_us``, the run's end, are pending); counts
+        updated. ``until_us``: every later request comes at or after it (the chunk's end; None: this is
+        the last chunk)."""
         first = self.requested
         self.requested += len(events)
         horizon: float | None = until_us
         for stage in self.stages.values():
             events, horizon = stage.process(events, horizon, first)
-        if not self.limited or len(events) == 0:
-            if end_us is not None and self.stages:
+        if not self.limited:
+            if end_us is not None and self.stages and len(events):
                 late = events["t"] > end_us
                 self.pending += int(np.count_nonzero(late))
                 events = events[~late]
             return events
-        keep = np.empty(len(events), np.bool_)
-        t_out = np.empty(len(events), np.int64)
-        self.free_us, d, x, total, longest = _serve(events["t"], 1e6 / self.params.max_rate_eps,
-                                                    self.params.max_delay_s * 1e6, self.free_us, keep, t_out)
-        self.delayed += d
-        self.dropped += x
-        self.total_delay_us += total
-        self.longest_delay_us = max(self.longest_delay_us, longest)
-        if end_us is not None:
-            late = keep & (t_out > end_us)
-            self.pending += int(np.count_nonzero(late))
-            keep &= ~late
-        out = events[keep]
-        out["t"] = t_out[keep]
-        return out
+        if self.arbiter is None:
+            self.arbiter = _ArbiterState(self.shape, axes=2 if "axis" in (events.dtype.names or ()) else 1)
+        return self.arbiter.serve(self, events, horizon=horizon, end_us=end_us)
 
     def summary(self) -> dict:
-        """Counts for the run summary and the file's attributes."""
+        """Counts for the run summary and the file's attributes: requested (the pixels' crossings) =
+        unsent (the pixel was waiting or held in reset) + filtered + dropped + pending at the end + delivered."""
         filtered = {"rate_controller_dropped": 0, "anti_flicker_dropped": 0}
         for stage in self.stages.values():
             filtered.update(stage.counts())
+        unsent, delayed, dropped, total, longest = self.stats
         return {"requested": self.requested,
-                "delivered": self.requested - self.dropped - self.pending - sum(filtered.values()),
-                **filtered, "delayed": self.delayed, "dropped": self.dropped, "pending_at_end": self.pending,
-                "mean_delay_us": self.total_delay_us / self.delayed if self.delayed else 0.0,
-                "max_delay_us": self.longest_delay_us, "max_rate_eps": self.params.max_rate_eps}
+                "delivered": self.requested - int(unsent) - int(dropped) - self.pending - sum(filtered.values()),
+                **filtered, "unsent": int(unsent), "delayed": int(delayed), "dropped": int(dropped),
+                "pending_at_end": self.pending,
+                "mean_delay_us": total / delayed if delayed else 0.0, "max_delay_us": float(longest),
+                "median_delay_us": delay_quantile_us(self.hist, 0.5),
+                "p99_delay_us": delay_quantile_us(self.hist, 0.99),
+                "arbitration": self.params.arbitration if self.limited else "none",
+                "max_rate_eps": self.params.max_rate_eps}
+
+
+class _ArbiterState:
+    """The arbiter's state across chunks: each requester's pending request, the rows' counts and queue,
+    the column burst under way and the bus's next free time."""
+
+    def __init__(self, shape: tuple[int, int], *, axes: int):
+        h, w = shape
+        self.w, self.axes = w, axes
+        self.per_row = w * axes
+        n = h * self.per_row
+        self.pend = np.zeros(n, np.int8)
+        self.pend_t = np.zeros(n)
+        self.pend_p = np.zeros(n, np.int8)
+        self.busy_until = np.full(n, -np.inf)
+        self.row_count = np.zeros(h, np.int64)
+        self.row_queued = np.zeros(h, np.int8)
+        self.queue = np.zeros(h, np.int64)
+        self.q = np.zeros(3, np.int64)
+        self.cursor = np.array([h - 1], np.int64)
+        self.col_cursor = np.full(h, self.per_row - 1, np.int64)
+        self.latched = np.zeros(self.per_row, np.int64)
+        self.burst = np.zeros(3, np.int64)
+        self.bus = np.array([-np.inf])
+
+    def serve(self, readout: Readout, events: np.ndarray, *, horizon: float | None, end_us: int | None) -> np.ndarray:
+        p = readout.params
+        r_in = events["y"].astype(np.int64) * self.per_row + events["x"].astype(np.int64) * self.axes
+        if self.axes == 2:
+            r_in += events["axis"].astype(np.int64)
+        final = horizon is None
+        n_out = len(events) + int(self.q[2]) + int(self.burst[2] - self.burst[1])
+        out_r, out_p, out_t = np.empty(n_out, np.int64), np.empty(n_out, np.int8), np.empty(n_out, np.int64)
+        m, _ = serve(events["t"].astype(np.float64), r_in, events["p"].astype(np.int8),
+                     math.inf if final else float(horizon), math.inf if end_us is None else float(end_us), final,
+                     1e6 / p.max_rate_eps, p.max_delay_s * 1e6, readout.hold_us, ARBITERS[p.arbitration].code,
+                     self.per_row, self.pend, self.pend_t, self.pend_p, self.busy_until, self.row_count,
+                     self.row_queued, self.queue, self.q, self.cursor, self.col_cursor, self.latched, self.burst,
+                     self.bus, out_r, out_p, out_t, readout.stats, readout.hist)
+        if final:
+            readout.pending = int(np.count_nonzero(self.pend))
+        out = np.zeros(m, events.dtype)
+        r = out_r[:m]
+        out["t"] = out_t[:m]
+        out["y"] = r // self.per_row
+        out["x"] = (r % self.per_row) // self.axes
+        if self.axes == 2:
+            out["axis"] = r % 2
+        out["p"] = out_p[:m].astype(events.dtype["p"])
+        return out

@@ -148,6 +148,10 @@ class EventParams(ComparatorOffset, Leak, ResetNoise, ThresholdMismatch, FromTab
         _check_mechanisms(self, "events")
 
 
+#: The arbiters a readout may name (:data:`gevsim.events.arbiter.ARBITERS`, which checks it has these).
+ARBITRATIONS = ("row_burst", "row_column", "row_queue")
+
+
 @dataclass(frozen=True)
 class ReadoutParams(FromTable):
     """Event readout of a sensor (a preset's ``[readout]`` table).
@@ -156,6 +160,8 @@ class ReadoutParams(FromTable):
     ----------
     max_rate_eps : events per second the arbiter and bus deliver at the most (``inf``: no limit).
     max_delay_s : the longest an event waits to be read before it is dropped (``inf``: never).
+    arbitration : how the arbiter picks the next pixel (:data:`gevsim.events.arbiter.ARBITERS`: ``row_burst``
+        for DAVIS, ``row_column`` for DVS128, ``row_queue`` for Prophesee Gen4).
     latency_s : the fixed delay from a comparator's crossing to its request reaching the arbiter
         (comparator, handshake): the latency floor.
     latency_jitter_s : sigma of that delay's spread from event to event (a normal, truncated at
@@ -173,6 +179,7 @@ class ReadoutParams(FromTable):
 
     max_rate_eps: float = math.inf
     max_delay_s: float = math.inf
+    arbitration: str = "row_burst"
     latency_s: float = 0.0
     latency_jitter_s: float = 0.0
     rate_controller_eps: float = math.inf
@@ -199,3 +206,6 @@ class ReadoutParams(FromTable):
         real(self.latency_jitter_s, "latency_jitter_s", low=0, high=MAX_LATENCY_S)
         real(self.max_rate_eps, "max_rate_eps", low=0, low_open=True, allow_inf=True)
         real(self.max_delay_s, "max_delay_s", low=0, allow_inf=True)
+        if self.arbitration not in ARBITRATIONS:
+            raise FieldError("arbitration", f"arbitration must be one of {', '.join(ARBITRATIONS)}, "
+                                            f"got {self.arbitration!r}")

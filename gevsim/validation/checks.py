@@ -138,7 +138,8 @@ def check_readout(preset: SensorPreset, s: Settings, data: dict) -> list[Row]:
         requested = 2.0 * e["max_rate_eps"]
         ev = np.zeros(n, BRIGHTNESS_DTYPE)
         ev["t"] = np.floor(np.arange(n) * 1e6 / requested).astype(np.int64)
-        out = Readout(preset.readout).process(ev)
+        ev["x"], ev["y"] = np.arange(n) % preset.width, (np.arange(n) // preset.width) % preset.height
+        out = Readout(preset.readout, shape=(preset.height, preset.width)).process(ev)
         span = (out["t"][-1] - out["t"][0]) * 1e-6
         rate = (len(out) - 1) / span if span > 0 else math.inf
         rows.append(Row("readout rate under 2x overload (ev/s)", e["source"], f"{e['max_rate_eps']:.4g}",

@@ -1,5 +1,6 @@
-"""Readout: at most max_rate_eps events per second leave the sensor, in request order; delays,
-drops and events still queued at the end are counted (issue 23, item 3)."""
+"""Readout: at most max_rate_eps events per second leave the sensor through an AER arbiter that holds one
+request per pixel (issues 23 and 34); delays, drops, crossings a waiting pixel could not send and pixels
+still waiting at the end are counted. The arbitration laws themselves: tests/events/test_arbiter.py."""
 
 from __future__ import annotations
 
@@ -14,27 +15,30 @@ def requests(t_us) -> np.ndarray:
     ev = np.zeros(len(t_us), BRIGHTNESS_DTYPE)
     ev["t"] = t_us
     ev["x"] = np.arange(len(t_us)) % 100
+    ev["y"] = (np.arange(len(t_us)) // 100) % 100
     return ev
 
 
-def test_a_burst_leaves_one_event_per_service_time():
-    r = Readout(ReadoutParams(max_rate_eps=1e6))  # one event per microsecond
+def test_a_burst_of_one_row_leaves_one_event_per_service_time_in_column_order():
+    r = Readout(ReadoutParams(max_rate_eps=1e6), shape=(100, 100))  # one event per microsecond
     out = r.process(requests(np.zeros(10, np.int64)))
     np.testing.assert_array_equal(out["t"], np.arange(10))
-    np.testing.assert_array_equal(out["x"], np.arange(10))  # request order kept
+    np.testing.assert_array_equal(out["x"], np.arange(10))  # the column burst reads the row left to right
     s = r.summary()
-    assert (s["requested"], s["delivered"], s["delayed"], s["dropped"]) == (10, 10, 9, 0)
+    assert (s["requested"], s["delivered"], s["delayed"], s["dropped"], s["unsent"]) == (10, 10, 9, 0, 0)
     assert s["mean_delay_us"] == pytest.approx(5.0) and s["max_delay_us"] == pytest.approx(9.0)
 
 
 def test_sustained_overload_delivers_the_bus_rate_and_counts_the_rest():
     rate, n = 1e5, 20_000  # 2e5 requests per second for 0.1 s into a 1e5 eps bus
     t = np.sort(np.random.default_rng(0).integers(0, 100_000, n))
-    r = Readout(ReadoutParams(max_rate_eps=rate))
-    out = np.concatenate([r.process(requests(t[a:b]), end_us=100_000) for a, b in ((0, 7000), (7000, n))])
+    r = Readout(ReadoutParams(max_rate_eps=rate), shape=(100, 100))
+    out = np.concatenate([r.process(requests(t[a:b]), end_us=100_000, until_us=u)
+                          for a, b, u in ((0, 7000, int(t[7000])), (7000, n, None))])
     s = r.summary()
-    assert s["requested"] == s["delivered"] + s["dropped"] + s["pending_at_end"] == n
+    assert s["requested"] == s["delivered"] + s["dropped"] + s["pending_at_end"] + s["unsent"] == n
     assert s["delivered"] == pytest.approx(rate * 0.1, abs=2) and len(out) == s["delivered"]
+    assert s["pending_at_end"] <= 100 * 100  # one request per pixel at the most
     assert np.all(np.diff(out["t"]) >= 0)
     for w in (10, 1000):  # no window of w us holds more than rate * w + 1 events
         counts = np.searchsorted(out["t"], out["t"] + w, side="left") - np.arange(len(out))
@@ -42,7 +46,7 @@ def test_sustained_overload_delivers_the_bus_rate_and_counts_the_rest():
 
 
 def test_events_waiting_too_long_are_dropped():
-    r = Readout(ReadoutParams(max_rate_eps=1e6, max_delay_s=4.5e-6))
+    r = Readout(ReadoutParams(max_rate_eps=1e6, max_delay_s=4.5e-6), shape=(100, 100))
     out = r.process(requests(np.zeros(10, np.int64)))
     np.testing.assert_array_equal(out["t"], np.arange(5))  # waits of 0..4 us; the rest would wait >= 5 us
     assert r.summary()["dropped"] == 5
@@ -51,13 +55,18 @@ def test_events_waiting_too_long_are_dropped():
 def test_chunks_and_no_limit():
     t = np.sort(np.random.default_rng(1).integers(0, 1000, 3000))
     ev = requests(t)
-    one = Readout(ReadoutParams(max_rate_eps=2e6)).process(ev)
-    r = Readout(ReadoutParams(max_rate_eps=2e6))
-    parts = np.concatenate([r.process(ev[a:b]) for a, b in ((0, 1), (1, 1700), (1700, 3000))])
+    one = Readout(ReadoutParams(max_rate_eps=2e6), shape=(100, 100)).process(ev)
+    r = Readout(ReadoutParams(max_rate_eps=2e6), shape=(100, 100))
+    parts = np.concatenate([r.process(ev[a:b], until_us=None if b == 3000 else int(t[b]))
+                            for a, b in ((0, 1), (1, 1700), (1700, 3000))])
     np.testing.assert_array_equal(one, parts)
     assert Readout(ReadoutParams()).process(ev) is ev  # no limit: untouched
     with pytest.raises(ValueError, match="max_rate_eps"):
         ReadoutParams(max_rate_eps=0.0)
+    with pytest.raises(ValueError, match="shape"):
+        Readout(ReadoutParams(max_rate_eps=1e6))
+    with pytest.raises(ValueError, match="arbitration"):
+        ReadoutParams(arbitration="lottery")
 
 
 def test_the_driver_reads_every_stream_through_the_sensors_bus(tmp_path):
@@ -90,7 +99,8 @@ def test_the_driver_reads_every_stream_through_the_sensors_bus(tmp_path):
         ev = r.read("events")
         s = json.loads(r.attrs["readout_json"])["events"]
     assert s["delayed"] > 0 and s["delivered"] == len(ev)
-    assert s["requested"] == s["delivered"] + s["dropped"] + s["pending_at_end"]
+    assert s["requested"] == s["delivered"] + s["dropped"] + s["pending_at_end"] + s["unsent"]
+    assert s["pending_at_end"] <= h * w
     per_ms = np.bincount(ev["t"] // 1000)
     assert per_ms.max() <= 2e5 * 1e-3 + 1
 
