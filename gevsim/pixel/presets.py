@@ -1,7 +1,8 @@
 """Sensor presets: TOML files under ``noise/`` with their sources in comments.
 
 A preset has the tables ``[sensor]`` (geometry), ``[photoreceptor]``,
-``[noise]``, ``[events]`` and optionally ``[aps]``. The photoreceptor cutoff
+``[noise]``, ``[events]`` and optionally ``[aps]``, ``[readout]`` and ``[stated]`` (what the whole
+pixel does, as a bench measures it: :class:`StatedBehaviour`). The photoreceptor cutoff
 may be stated at an illuminance (``cutoff_ref_lux``, as datasheets do); it is
 converted to photocurrent with the pixel area, fill factor and the silicon
 responsivity for ``bandwidth_reference_spectrum``.
@@ -13,12 +14,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gevsim.config import load_table, resource_tomls
+from gevsim._validate import real
+from gevsim.config import FieldError, FromTable, load_table, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.pixel.aps import ApsParams
 from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams, ReadoutParams
 
-TABLES = ("sensor", "photoreceptor", "noise", "events", "aps", "readout")
+TABLES = ("sensor", "photoreceptor", "noise", "events", "aps", "readout", "stated")
 SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_factor",
                "bandwidth_reference_spectrum", "quantum_efficiency")
 #: The least dark current of a preset's median pixel, in electrons per second (1.6e-19 A). Far below it,
@@ -28,6 +30,43 @@ MIN_DARK_ELECTRONS_PER_S = 1.0
 #: The brightest reference illuminance: pi x 1e10 lux, as bright as a scene manifest's light may be
 #: (gevsim.render.manifest_checks.MAX_LIMITS); 1e300 lux gave an infinite signal after the render.
 MAX_CUTOFF_REF_LUX = 3.1415926535897932e10
+
+
+@dataclass(frozen=True)
+class StatedBehaviour(FromTable):
+    """What a preset says its whole pixel does, as a bench would measure it (a preset's ``[stated]``
+    table, issue 34): the behaviour of the chain, not of one of its parameters. ``gevsim validate``
+    measures each statement at its own conditions and fails a row when they differ by more than 10 %.
+
+    Parameters
+    ----------
+    bandwidth_hz : the -3 dB frequency of the whole chain (photoreceptor and every pole after it) for a
+        small sinusoidal modulation of the light, at ``bandwidth_chip_lux`` (None: not stated).
+    bandwidth_chip_lux : the chip (focal-plane) illuminance, D65, at which ``bandwidth_hz`` holds.
+    latency_s : the delay from a step of ``latency_step_ln`` (ln photocurrent, upward) to the first ON
+        event, noise-free, at the nominal threshold, the readout's fixed latency included, at
+        ``latency_chip_lux`` (None: not stated).
+    latency_step_ln : the step's contrast in ln units (1.0: the light rises by e = 2.72x; ln 1.3 = 0.262: 30 %).
+    latency_chip_lux : the chip illuminance, D65, before the step.
+    """
+
+    TABLE = "stated"
+
+    bandwidth_hz: float | None = None
+    bandwidth_chip_lux: float = 1000.0
+    latency_s: float | None = None
+    latency_step_ln: float = 1.0
+    latency_chip_lux: float = 1000.0
+
+    def __post_init__(self):
+        for name in ("bandwidth_hz", "latency_s"):
+            if getattr(self, name) is not None:
+                real(getattr(self, name), name, low=0, low_open=True)
+        for name in ("bandwidth_chip_lux", "latency_chip_lux"):
+            real(getattr(self, name), name, low=0, low_open=True, high=MAX_CUTOFF_REF_LUX)
+        real(self.latency_step_ln, "latency_step_ln", low=0, low_open=True, high=20.0)
+        if self.latency_s is not None and self.latency_s > 1.0:
+            raise FieldError("latency_s", f"latency_s must be at most 1 s, got {self.latency_s!r}")
 
 
 @dataclass(frozen=True)
@@ -47,6 +86,7 @@ class SensorPreset:
     source: str
     readout: ReadoutParams = ReadoutParams()  # no limit unless the preset's [readout] says
     quantum_efficiency: str = "fsi"  # a name in gevsim.optics.QE_CURVES
+    stated: StatedBehaviour = StatedBehaviour()  # nothing stated unless the preset's [stated] says
 
     @property
     def qe(self) -> tuple:
@@ -219,6 +259,7 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         source=src,
         readout=ReadoutParams.from_table(raw.get("readout", {}), source=src),
         quantum_efficiency=qe_name,
+        stated=StatedBehaviour.from_table(raw.get("stated", {}), source=src),
     )
 
 
