@@ -76,10 +76,23 @@ def pixel_counts(events: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.bincount(events["y"].astype(np.int64) * shape[1] + events["x"], minlength=shape[0] * shape[1])
 
 
-def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[int, int] = (32, 32),
-                        duration_s: float = 10.0, seed: int = 0, step_s: float | None = None,
-                        chunk_steps: int = 5000) -> tuple[Rate, Rate]:
-    """DVS background activity (ON, OFF) in ev/px/s under constant uniform light: a sensor that has
+@dataclass(frozen=True)
+class Counts:
+    """Per-pixel DVS event counts (flattened row-major) of a run of ``span_s`` seconds."""
+
+    on: np.ndarray
+    off: np.ndarray
+    span_s: float
+
+    def rates(self) -> tuple[Rate, Rate]:
+        """(ON, OFF) in ev/px/s with their 95 % intervals."""
+        return rate_interval(self.on, self.span_s), rate_interval(self.off, self.span_s)
+
+
+def background_counts(preset: SensorPreset, chip_lux: float, *, shape: tuple[int, int] = (32, 32),
+                      duration_s: float = 10.0, seed: int = 0, step_s: float | None = None,
+                      chunk_steps: int = 5000) -> Counts:
+    """Per-pixel DVS background events (ON, OFF) under constant uniform light: a sensor that has
     been running (settled photoreceptor, stationary noise, random leak phases)."""
     step = default_step_s(preset, chip_lux) if step_s is None else float(step_s)
     n = int(math.ceil(duration_s / step))
@@ -93,8 +106,39 @@ def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[i
         ev = dvs.process(pr.process(np.broadcast_to(level, (len(t),) + shape), t), t)
         on += pixel_counts(ev[ev["p"]], shape)
         off += pixel_counts(ev[~ev["p"]], shape)
-    span = n * step
-    return rate_interval(on, span), rate_interval(off, span)
+    return Counts(on, off, n * step)
+
+
+def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[int, int] = (32, 32),
+                        duration_s: float = 10.0, seed: int = 0, step_s: float | None = None,
+                        chunk_steps: int = 5000) -> tuple[Rate, Rate]:
+    """DVS background activity (ON, OFF) in ev/px/s under constant uniform light: a sensor that has
+    been running (settled photoreceptor, stationary noise, random leak phases)."""
+    return background_counts(preset, chip_lux, shape=shape, duration_s=duration_s, seed=seed, step_s=step_s,
+                             chunk_steps=chunk_steps).rates()
+
+
+def intrinsic_spread(counts: np.ndarray) -> float:
+    """The pixel-to-pixel coefficient of variation of the event rate, with the Poisson scatter of
+    the counts taken out: sqrt(var(n) - mean(n)) / mean(n) (0 where the counts vary no more than
+    Poisson counts would; nan with no event). Comparable between runs of different lengths."""
+    c = np.asarray(counts, float).ravel()
+    m = float(c.mean())
+    if m <= 0 or c.size < 2:
+        return math.nan
+    return math.sqrt(max(float(np.var(c, ddof=1)) - m, 0.0)) / m
+
+
+def intrinsic_correlation(a: np.ndarray, b: np.ndarray) -> float:
+    """The pixel-to-pixel correlation of two event rates (ON and OFF of the same pixels) with the
+    Poisson scatter of the counts taken out of the variances (it is independent between the two, so
+    the covariance keeps): cov(a, b) / sqrt((var a - mean a) (var b - mean b)), clipped to [-1, 1];
+    nan when either has no spread beyond Poisson."""
+    x, y = np.asarray(a, float).ravel(), np.asarray(b, float).ravel()
+    va, vb = float(np.var(x, ddof=1)) - float(x.mean()), float(np.var(y, ddof=1)) - float(y.mean())
+    if va <= 0 or vb <= 0:
+        return math.nan
+    return max(-1.0, min(1.0, float(np.cov(x, y)[0, 1]) / math.sqrt(va * vb)))
 
 
 def _ideal_photoreceptor(preset: SensorPreset, shape: tuple[int, int] = (1, 1)) -> Photoreceptor:
@@ -173,3 +217,32 @@ def step_latency_s(preset: SensorPreset, chip_lux: float, *, contrast_ln: float 
         if len(on):
             return float(on["t"][0]) * 1e-6 - float(t[0]) + preset.readout.latency_s
     return math.inf
+
+
+def sinusoid_events_per_cycle(preset: SensorPreset, chip_lux: float, frequency_hz: float, *,
+                              amplitude_ln: float = 0.5, threshold_ln: float = 0.05, cycles: int = 12,
+                              skip: int = 2, per_cycle: int = 400) -> tuple[float, float]:
+    """(ON, OFF) events per cycle of a sinusoid of ``amplitude_ln`` in ln photocurrent around a chip
+    illuminance, on the noise-free pixel with ``threshold_ln`` thresholds, no refractory period and no
+    leak (the analog chain's passband, as issue 34 states it: a pixel passing the sinusoid whole gives
+    2 amplitude / threshold events per polarity per cycle, one at -3 dB 1 / sqrt 2 of that). The
+    photoreceptor starts settled on the periodic light; the first ``skip`` cycles are not counted."""
+    import dataclasses
+
+    from gevsim import _portable as pm
+
+    ideal = preset.ideal()
+    events = dataclasses.replace(ideal.events, threshold_on_ln=threshold_ln, threshold_off_ln=threshold_ln,
+                                 refractory_s=0.0)
+    pr = _ideal_photoreceptor(preset)
+    dvs = BrightnessEmulator((1, 1), events, rng=np.random.default_rng(1), light_leak=False)
+    dt = 1.0 / (frequency_hz * per_cycle)
+    n = cycles * per_cycle
+    t = dt * np.arange(1, n + 1)
+    phase = 2.0 * math.pi * frequency_hz * (t - 0.5 * dt)
+    cur = photocurrent_a(preset, chip_lux) * pm.exp(amplitude_ln * pm.sin(phase))
+    pr.settle(cur[:per_cycle].reshape(per_cycle, 1, 1), np.full(per_cycle, dt))
+    ev = dvs.process(pr.process(cur.reshape(n, 1, 1), t), t)
+    counted = ev[ev["t"] >= 1e6 * skip / frequency_hz]
+    k = cycles - skip
+    return float(np.count_nonzero(counted["p"])) / k, float(np.count_nonzero(~counted["p"])) / k
