@@ -33,7 +33,17 @@ from gevsim.emulation.emulators import (
     SEED_SLOTS,
     make_emulator,
 )
-from gevsim.emulation.photocurrent import Setup, photocurrent_at
+from gevsim.emulation.photocurrent import Setup, photocurrent_at  # noqa: F401 (imported from here by callers)
+from gevsim.emulation.start import (  # noqa: F401 (step_grid, refine, held_photocurrent: their home before #34)
+    MAX_SETTLE_PERIOD_S,
+    burn_in,
+    burn_in_span_s,
+    common_period_s,
+    held_photocurrent,
+    refine,
+    settle,
+    step_grid,
+)
 from gevsim.emulation.summary import RunSummary
 from gevsim.emulation.truth import write_frames
 from gevsim.errors import ConfigError, suggest
@@ -180,7 +190,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     render_s = time.perf_counter() - start
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width
-    pr, start_state, emulators, readouts, aps, aps_rng = _chain(config, setup)
+    pr, start_state, emulators, readouts, aps, aps_rng = _chain(config, setup, grid_waveforms=grid_waveforms, sub=sub)
     end_us = int(round(setup.duration_s * 1e6))
 
     n_steps = config.time.steps(setup.duration_s)
@@ -218,19 +228,25 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     )
 
 
-def _chain(config: EmulationConfig, setup: Setup) -> tuple:
+def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub: int) -> tuple:
     """The run's pixel chain, each part seeded by its slot of the run's seed sequence: the photoreceptor
     (settled unless a cold start), the emulators, their readouts (the sensor's bus share of the window),
     and the APS sensor and its read-noise generator (or None)."""
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width
     seeds = np.random.SeedSequence(config.seed).spawn(SEED_SLOTS)
-    pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise,
+    period = common_period_s(grid_waveforms)  # the flicker run's: its counterfactuals burn in alike (paired)
+    span = 0.0 if config.cold_start else burn_in_span_s(config.burn_in_s, period)
+    pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise, t0_s=-span,
                        rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]), cold_start=config.cold_start)
     start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s)
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}
+    if span > 0:
+        burn_in(pr, emulators, setup, span_s=span, step_s=config.step_s, sub=sub, chunk_steps=config.chunk_steps,
+                grid_waveforms=grid_waveforms, periodic=period is not None)
+        start_state += f"; the chain burnt in for {span * 1e3:.6g} ms before t = 0 (events discarded)"
     readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
     bus = chip_share(preset.readout, emulated_px=h * w, chip_px=preset.width * preset.height)
     readouts = {name: Readout(bus, key=int(readout_key) + EMULATORS[name].seed_slot, shape=(h, w),
@@ -291,76 +307,3 @@ def substeps(config: EmulationConfig, setup: Setup) -> int:
     log.info("step_s = %g s is coarser than the %s pixel's fastest noise path allows (%.3g s): %d sub-steps "
              "per step", config.step_s, setup.preset.name, limit, k)
     return k
-
-
-def refine(t_end: np.ndarray, t_start: float, k: int) -> np.ndarray:
-    """Each step (t_end[i - 1], t_end[i]] split into ``k`` equal sub-steps."""
-    if k == 1:
-        return t_end
-    starts = np.r_[t_start, t_end[:-1]]
-    frac = np.arange(1, k + 1) / k
-    fine = starts[:, None] + (t_end - starts)[:, None] * frac[None, :]
-    fine[:, -1] = t_end  # the configured ends exactly
-    return fine.ravel()
-
-
-#: The longest lamp period for which a run starts at the periodic steady state (one period is
-#: emulated three times, noise-free, to solve for it).
-MAX_SETTLE_PERIOD_S = 0.1
-
-
-def common_period_s(waveforms: tuple | list) -> float | None:
-    """The shortest time after which every waveform repeats (None: one is not periodic or the
-    common period exceeds :data:`MAX_SETTLE_PERIOD_S`); 0.0 when all are constant."""
-    from gevsim.illumination import DC
-
-    found = [wf.period_s for wf in waveforms if not isinstance(wf, DC)]
-    if any(p is None for p in found):
-        return None
-    periods = [float(p) for p in found]
-    if not periods:
-        return 0.0
-    longest = max(periods)
-    for k in range(1, int(MAX_SETTLE_PERIOD_S / longest) + 1):
-        total = k * longest
-        if all(abs(total / p - round(total / p)) < 1e-6 for p in periods):
-            return total
-    return None
-
-
-def settle(pr: Photoreceptor, setup: Setup, step_s: float) -> str:
-    """Start ``pr`` at the periodic steady state of the scene's lamps (a sensor that has been running);
-    returns what was done, for the file's ``start`` attribute."""
-    period = common_period_s(setup.waveforms)
-    if period is None:
-        return "settled on the first sample: the lamps have no common period <= 0.1 s"
-    if period == 0.0:
-        period = step_s  # constant light: one step of it is its period
-    n = max(1, int(np.ceil(period / step_s - 1e-9)))
-    t_end = step_grid(setup.waveforms, 0.0, period / n * np.arange(1, n + 1))
-    pr.settle(held_photocurrent(setup, 0.0, t_end), np.diff(t_end, prepend=0.0))
-    return f"periodic steady state of the lamps ({period * 1e3:.6g} ms, {len(t_end)} steps)"
-
-
-def step_grid(waveforms: tuple | list, t_start: float, t_end: np.ndarray) -> np.ndarray:
-    """The step ends ``t_end`` with every waveform breakpoint inside them added (a lamp's jump is
-    then at a step boundary, so holding each step's mean light is exact for piecewise-constant
-    light); breakpoints within 1 ns of a step end are dropped."""
-    lo, hi = float(t_start), float(t_end[-1])
-    extra = np.concatenate([wf.breakpoints_s(lo, hi) for wf in waveforms] + [np.empty(0)])
-    if extra.size == 0:
-        return t_end
-    extra = np.unique(extra)
-    near = np.searchsorted(t_end, extra)
-    gap = np.minimum(np.abs(extra - t_end[np.minimum(near, len(t_end) - 1)]),
-                     np.abs(extra - t_end[np.maximum(near - 1, 0)]))
-    extra = extra[(gap > 1e-9) & (extra - lo > 1e-9)]
-    return np.union1d(t_end, extra)
-
-
-def held_photocurrent(setup: Setup, t_start: float, t_end: np.ndarray) -> np.ndarray:
-    """Photocurrent (T, H, W) held over each step (t_end[k - 1], t_end[k]]: the waveforms' exact
-    mean over the step, the poses at its middle."""
-    starts = np.r_[t_start, t_end[:-1]]
-    dt = t_end - starts
-    return photocurrent_at(setup, starts + 0.5 * dt, weights_at(setup.waveforms, starts, average_over_s=dt))

@@ -88,6 +88,8 @@ class BrightnessEmulator:
         leaks = (self.leak_ln_per_s > 0.0) | lit
         self.leak_phase = np.zeros(n) if cold_start else np.where(leaks, phase, 0.0)
         self.reset_key = np.uint64(rng.integers(0, 2**63, dtype=np.int64))
+        self.start_ref: np.ndarray | None = None  # levels at the first sample, from start_from_noise
+        self.start_seed = int(rng.integers(0, 2**63, dtype=np.int64))  # keys start_from_noise's draws
         self.ref = np.zeros(n)
         self.v_prev = np.zeros(n)
         self.last_t = np.full(n, -np.inf)
@@ -95,6 +97,29 @@ class BrightnessEmulator:
         self._px_y, self._px_x = (a.ravel().astype(np.int16) for a in np.indices(self.shape))
         self.blocks = EventBlocks((n + _kernels.BLOCK - 1) // _kernels.BLOCK, dtype=self.dtype,
                                   first_per_step=_kernels.BLOCK / 8, min_free=_kernels.MAX_EVENTS_PER_STEP)
+
+    def start_from_noise(self, sigma_ln: np.ndarray, crossings_hz: np.ndarray, correlation: np.ndarray,
+                         signal_ln: np.ndarray) -> None:
+        """Draw each pixel's start level from its stationary law given its noise (standard deviation
+        ``sigma_ln``, Rice frequency ``crossings_hz``, ``correlation`` over the refractory period), its leak
+        and its thresholds
+        (:func:`gevsim.events.stationary.stationary_levels`), in place of the uniform leak phase.
+        ``signal_ln``: the settled noise-free signal (the levels are drawn about it, not about the first
+        noisy sample, which would add that sample's noise to every level; the light leak grows with exp of it)."""
+        from gevsim.events.stationary import stationary_levels
+
+        n = self.threshold_on_ln.size
+        drift = self.leak_ln_per_s.copy()
+        if self.leak_light.size:
+            drift += self.leak_light * np.exp(np.asarray(signal_ln, float).reshape(-1))
+        uniform = np.random.default_rng(self.start_seed).random(n)
+        u = np.empty(n)
+        stationary_levels(self.threshold_on_ln, self.threshold_off_ln, np.asarray(sigma_ln, float).reshape(-1),
+                          np.asarray(crossings_hz, float).reshape(-1), np.asarray(correlation, float).reshape(-1),
+                          drift, float(self.params.reset_noise_ln),
+                          uniform, u)
+        self.leak_phase = -u / self.threshold_on_ln
+        self.start_ref = np.asarray(signal_ln, float).reshape(-1) + u
 
     def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Events (sorted by time) from samples ``signal`` (T, H, W) in ln units at times ``t_s`` (T,).
@@ -108,7 +133,7 @@ class BrightnessEmulator:
         ref, v_prev, last_t, count = self.ref.copy(), self.v_prev.copy(), self.last_t.copy(), self.count.copy()
         if first:
             v_prev = v[0].reshape(-1).astype(np.float64)
-            ref = v_prev - self.leak_phase * self.threshold_on_ln
+            ref = v_prev - self.leak_phase * self.threshold_on_ln if self.start_ref is None else self.start_ref.copy()
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
         flat = v.reshape(len(t_end), self.shape[0] * self.shape[1])
         p = self.params

@@ -164,6 +164,10 @@ class GradientEmulator:
             t[AXIS_Y, 1::2, :] = 0
         return t
 
+    def mark_start(self) -> None:
+        """Take the present ternary state as :attr:`initial_state` (a run's t = 0 after a burn-in)."""
+        self.initial_state = self.state.copy()
+
     def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Events sorted by time from samples ``signal`` (T, H, W) at times ``t_s``.
 

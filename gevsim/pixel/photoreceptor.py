@@ -135,6 +135,8 @@ class Photoreceptor:
         else:
             w2 = w1
         self.v1, self.v2 = u0 + w1, u0 + w2
+        self.settled_current_a = first
+        self.settled_ln = self.v2 + (self.offset_ln if self.offset_ln is not None else 0.0)  # noise-free output
         if not self.cold_start:
             self._stationary_noise(first, self.v1, self.v2, self.fn)
         self.started = True
@@ -162,6 +164,40 @@ class Photoreceptor:
             a_r = 2.0 * math.pi * float(separated_hz(self.fn_hz[0], f_out))
             s = math.sqrt(self.fn_var[0])
             v2 += beta / (a_r + beta) * fn[0] + s * math.sqrt(a_r * beta) / (a_r + beta) * self.start_z[2]
+
+    def output_noise_law(self, lag_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The output noise's standard deviation (ln), Rice frequency (Hz) and correlation over ``lag_s`` per
+        pixel, at the settled photocurrent: the level crossing rate of a level w is nu exp(-w^2 / 2 sigma^2)
+        (Rice 1944). Each white noise through two poles (rates alpha, beta) has variance var beta / (alpha +
+        beta) at the output, derivative variance var alpha beta^2 / (alpha + beta) and correlation
+        (beta e^(-alpha tau) - alpha e^(-beta tau)) / (beta - alpha), so nu = (1 / 2 pi) sqrt(sum of
+        derivative variances / sum of variances). The 1/f poles' OU terms add to sigma (and the correlation)
+        only. None without an output pole (a single pole's path has no crossing rate) or before :meth:`settle`."""
+        p = self.params
+        if p.second_pole_hz is None or getattr(self, "settled_current_a", None) is None:
+            return None
+        beta = 2.0 * math.pi * p.second_pole_hz
+        itot = self.settled_current_a
+        var, dvar, cov = np.zeros_like(itot), np.zeros_like(itot), np.zeros_like(itot)
+
+        def two_poles(x, alpha):
+            nonlocal var, dvar, cov
+            var = var + x * beta / (alpha + beta)
+            dvar = dvar + x * alpha * beta * beta / (alpha + beta)
+            rho = (beta * np.exp(-alpha * lag_s) - alpha * np.exp(-beta * lag_s)) / (beta - alpha)
+            cov = cov + x * beta / (alpha + beta) * rho
+
+        if self.shot_q > 0 or self.amp_ln2_hz > 0:
+            fc = separated_hz(p.cutoff_at(itot), p.second_pole_hz)
+            two_poles(self.shot_q * fc / itot + self.amp_ln2_hz / fc, 2.0 * math.pi * fc)
+        for k in range(len(self.fn_hz)):
+            if k < self.n_read:  # the read noise: its own pole, then the output pole
+                two_poles(self.fn_var[0], 2.0 * math.pi * float(separated_hz(self.fn_hz[0], p.second_pole_hz)))
+            else:
+                var = var + self.fn_var[k]
+                cov = cov + self.fn_var[k] * math.exp(-2.0 * math.pi * self.fn_hz[k] * lag_s)
+        safe = np.maximum(var, 1e-300)
+        return np.sqrt(var), np.sqrt(dvar / safe) / (2.0 * math.pi), cov / safe
 
     def process(self, photocurrent_a: ArrayLike, t_s: ArrayLike) -> np.ndarray:
         """Advance over T steps and return the output (T, H, W) float32, in ln units.

@@ -91,3 +91,48 @@ def test_a_step_too_coarse_for_the_noise_is_sub_stepped():
     assert substeps(EmulationConfig(scene=str(DATA / "card.toml"), step_s=2e-5, duration_s=0.02), setup) == 1
     assert substeps(EmulationConfig(scene=str(DATA / "card.toml"), step_s=1e-4, duration_s=0.02), setup) == 4
     np.testing.assert_allclose(refine(np.array([3e-4, 6e-4]), 0.0, 3), 1e-4 * np.arange(1, 7))
+
+
+def uniform_run(tmp_path, sensor: str, chip_lux: float, *, burn_in_s: float, seed: int = 1,
+                duration_s: float = 0.1) -> np.ndarray:
+    """DVS events of a static uniform 64x48 scene at ``chip_lux`` (D65 on the chip), noise on, no readout cap."""
+    from gevsim.validation.measure import photocurrent_a
+
+    manifest = load(DATA / "card.toml")
+    h, w = 48, 64
+    manifest = dataclasses.replace(manifest, render=dataclasses.replace(manifest.render, width=w, height=h))
+    preset = dataclasses.replace(load_preset(sensor), readout=ReadoutParams())
+    setup = Setup(manifest=manifest, preset=preset, basis_times_s=np.array([0.0]),
+                  current_basis=np.full((1, 1, h, w), photocurrent_a(preset, chip_lux)),
+                  waveforms=(from_spec({"type": "dc"}),), duration_s=duration_s,
+                  variant=types.SimpleNamespace(variant="none"), current_noise=None, render_quality={})
+    config = EmulationConfig(scene=str(DATA / "card.toml"), sensor=sensor, seed=seed, duration_s=duration_s,
+                             emulators=("dvs",), frame_rate_hz=0.0, burn_in_s=burn_in_s)
+    out = tmp_path / f"u_{sensor}_{chip_lux}_{burn_in_s}.h5"
+    run(config, out, setup=setup)
+    with EventReader(out) as r:
+        assert "burnt in" in str(r.attrs["start"]) or burn_in_s == 0
+        return r.read("events")
+
+
+def start_matches_steady(ev: np.ndarray) -> bool:
+    """ON and OFF counts in the first 2 ms agree with the rate of 50-100 ms: within 20 %, or within
+    4 Poisson sigma of the count that rate predicts (at 10 chip lux a 64x48 array makes ~2 events in 2 ms)."""
+    for pol in (True, False):
+        t = ev["t"][ev["p"] == pol]
+        early = np.count_nonzero(t < 2000)
+        expected = np.count_nonzero((t >= 50_000) & (t < 100_000)) * 2 / 50
+        if abs(early - expected) > max(0.2 * expected, 4 * np.sqrt(expected + 1)):
+            return False
+    return True
+
+
+@pytest.mark.parametrize("sensor", ["davis346", "dvs128"])
+@pytest.mark.parametrize("chip_lux", [0.1, 10.0])
+def test_a_static_scene_fires_at_its_steady_rate_from_the_start(tmp_path, sensor, chip_lux):
+    """Issue 34: before the burn-in, davis346 at 10 chip lux made 102 ON ev/px/s in its first 2 ms and 0.55
+    after 50 ms (the memorised levels started uniformly below the signal); now the chain runs burn_in_s
+    before t = 0 and the first 2 ms fire as the steady state does, ON and OFF."""
+    assert start_matches_steady(uniform_run(tmp_path, sensor, chip_lux, burn_in_s=0.1))
+    if chip_lux == 10.0 and sensor == "davis346":  # the check can fail: without the burn-in it does
+        assert not start_matches_steady(uniform_run(tmp_path, sensor, chip_lux, burn_in_s=0.0))
