@@ -141,6 +141,11 @@ def plot(preset: SensorPreset, curves: dict, out: Path) -> None:
             _points(ax, [e["chip_lux"] if e["chip_lux"] > 0 else dark_x for e in pts],
                     [max(e["rate_hz"], floor) for e in pts], label=label, colour=colour,
                     name=f"{pol} {'/'.join(sorted({e['source'] for e in pts}))}")
+    shares = [e for e in data.get("off_share", []) if preset.name in e["sensors"]]
+    for label in LABELS:
+        pts = [e for e in shares if e["label"] == label]
+        _points(ax, [e["chip_lux"] for e in pts], [max(e["off_hz"], floor) for e in pts], label=label,
+                colour="tab:blue", name=f"OFF {'/'.join(sorted({e['source'] for e in pts}))} (OFF share)")
     dark = [e for e in entries if e["chip_lux"] == 0]
     if dark:
         ax.annotate("0 lux\n(dark)", (dark_x, max(dark[0]["rate_hz"], floor) / 2.2), fontsize=7, color="0.3",
