@@ -295,9 +295,10 @@ def check_self(preset: SensorPreset, s: Settings, data: dict) -> list[Row]:
 
 def flicker_rates(preset: SensorPreset, s: Settings, *, phase: float, chip_lux: float = 10.0) -> Rate:
     """DVS events per pixel per second under a 100 Hz sinusoidal lamp (50 % modulation) over 0.2 s,
-    the run starting at ``phase`` of the lamp period from a settled sensor."""
+    the run starting at ``phase`` of the lamp period from a sensor that has been running under it
+    (:func:`~gevsim.validation.measure.start_running`)."""
     from gevsim import _portable as pm
-    from gevsim.validation.measure import photocurrent_a, pixel_counts, rate_interval, running_sensor
+    from gevsim.validation.measure import photocurrent_a, pixel_counts, rate_interval, running_sensor, start_running
 
     shape = s.shape
     step, period = 2e-5, 0.01
@@ -307,8 +308,8 @@ def flicker_rates(preset: SensorPreset, s: Settings, *, phase: float, chip_lux: 
     pr, dvs = running_sensor(preset, shape, 5)
     mid = phase * period + step * (np.arange(n) + 0.5)
     cur = i0 * (1.0 + 0.5 * pm.sin(2.0 * math.pi * 100.0 * mid))
-    pr.settle(np.broadcast_to(cur[:per, None, None], (per,) + shape), np.full(per, step))
-    t = step * np.arange(1, n + 1)
+    t0 = start_running(pr, dvs, np.ascontiguousarray(np.broadcast_to(cur[:per, None, None], (per,) + shape)), step)
+    t = t0 + step * np.arange(1, n + 1)
     ev = dvs.process(pr.process(np.broadcast_to(cur[:, None, None], (n,) + shape), t), t)
     return rate_interval(pixel_counts(ev, shape), n * step)
 

@@ -62,13 +62,35 @@ def default_step_s(preset: SensorPreset, chip_lux: float) -> float:
 
 
 def running_sensor(preset: SensorPreset, shape: tuple[int, int], seed: int) -> tuple[Photoreceptor, BrightnessEmulator]:
-    """The preset's photoreceptor and DVS over ``shape`` pixels, seeded from ``seed`` (settle the
-    photoreceptor before the first chunk: a sensor that has been running)."""
+    """The preset's photoreceptor and DVS over ``shape`` pixels, seeded from ``seed`` (start them with
+    :func:`start_running` before the first chunk: a sensor that has been running)."""
     seeds = np.random.SeedSequence(seed).spawn(2)
     pr = Photoreceptor(shape, params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(seeds[0]))
     dvs = BrightnessEmulator(shape, preset.events, rng=np.random.default_rng(seeds[1]),
                              temperature_k=preset.photoreceptor.temperature_k)
     return pr, dvs
+
+
+def start_running(pr: Photoreceptor, dvs: BrightnessEmulator, light: np.ndarray, step_s: float, *,
+                  burn_in_s: float | None = None) -> float:
+    """Start a bench as the driver starts a run (issue 34): the photoreceptor settled on ``light`` (T, H, W),
+    one period of it held over steps of ``step_s`` (T = 1: constant light), each DVS level drawn from its
+    stationary law given the noise, then ``burn_in_s`` (default: the driver's, rounded up to whole periods
+    of ``light``) of the chain on that light, its events discarded. Returns the time the burn-in ended,
+    after which the bench's own steps follow."""
+    from gevsim.emulation.config import BURN_IN_S
+
+    period = len(light)
+    pr.settle(light, np.full(period, step_s))
+    law = pr.output_noise_law(dvs.params.refractory_s)
+    if law is not None:
+        dvs.start_from_noise(*law, signal_ln=pr.settled_ln)
+    span = BURN_IN_S if burn_in_s is None else float(burn_in_s)
+    n = int(math.ceil(span / (period * step_s) - 1e-9)) * period
+    if n:
+        t = step_s * np.arange(1, n + 1)
+        dvs.process(pr.process(np.tile(light, (n // period, 1, 1)), t), t)
+    return n * step_s
 
 
 def pixel_counts(events: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -93,16 +115,16 @@ def background_counts(preset: SensorPreset, chip_lux: float, *, shape: tuple[int
                       duration_s: float = 10.0, seed: int = 0, step_s: float | None = None,
                       chunk_steps: int = 5000) -> Counts:
     """Per-pixel DVS background events (ON, OFF) under constant uniform light: a sensor that has
-    been running (settled photoreceptor, stationary noise, random leak phases)."""
+    been running (:func:`start_running`: settled photoreceptor, stationary noise and DVS levels, burnt in)."""
     step = default_step_s(preset, chip_lux) if step_s is None else float(step_s)
     n = int(math.ceil(duration_s / step))
     pr, dvs = running_sensor(preset, shape, seed)
     level = np.full((1,) + shape, photocurrent_a(preset, chip_lux))
-    pr.settle(level, np.array([step]))
+    t0 = start_running(pr, dvs, level, step)
     on = np.zeros(shape[0] * shape[1], np.int64)
     off = np.zeros_like(on)
     for a in range(0, n, chunk_steps):
-        t = step * np.arange(a + 1, min(a + chunk_steps, n) + 1)
+        t = t0 + step * np.arange(a + 1, min(a + chunk_steps, n) + 1)
         ev = dvs.process(pr.process(np.broadcast_to(level, (len(t),) + shape), t), t)
         on += pixel_counts(ev[ev["p"]], shape)
         off += pixel_counts(ev[~ev["p"]], shape)
@@ -113,7 +135,7 @@ def background_activity(preset: SensorPreset, chip_lux: float, *, shape: tuple[i
                         duration_s: float = 10.0, seed: int = 0, step_s: float | None = None,
                         chunk_steps: int = 5000) -> tuple[Rate, Rate]:
     """DVS background activity (ON, OFF) in ev/px/s under constant uniform light: a sensor that has
-    been running (settled photoreceptor, stationary noise, random leak phases)."""
+    been running (:func:`background_counts`)."""
     return background_counts(preset, chip_lux, shape=shape, duration_s=duration_s, seed=seed, step_s=step_s,
                              chunk_steps=chunk_steps).rates()
 
