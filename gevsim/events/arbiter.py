@@ -128,7 +128,8 @@ def serve(t_in, r_in, p_in, horizon_us, end_us, final, service_us, max_delay_us,
     """Serve requests ``r_in`` (requester ids) arriving at ``t_in`` (us, sorted) with polarities ``p_in``
     until ``horizon_us`` (every later request arrives after it; ignored when ``final``) or ``end_us``.
     Fills out_* with the acknowledged events in time order; returns how many. ``bus[0]``: when the bus
-    is next free. ``q``: (head, length) of the row queue and the pending total. ``burst``: (row, position, length) of the column burst under way. ``stats``: unsent,
+    is next free. ``q``: (head, length) of the row queue and the pending total. ``burst``: (row,
+    position, length) of the column burst under way. ``stats``: unsent,
     delayed, dropped, total delay (us), longest delay (us)."""
     n = t_in.shape[0]
     i = 0

@@ -2,7 +2,8 @@
 
 Pixels that fire wait for the arbiter (:mod:`gevsim.events.arbiter`: one request per pixel, reset
 on the acknowledge, arbitration by rows as the chip does it); one event leaves every 1 / R seconds at
-the most (R = ``max_rate_eps``). An event that would wait longer than ``max_delay_s`` is dropped. Under lamp flicker this decides what a DVS delivers:
+the most (R = ``max_rate_eps``). An event that would wait longer than ``max_delay_s`` is dropped.
+Under lamp flicker this decides what a DVS delivers:
 100 Hz flicker at 346x260 requests 65-91 Meps (sensor-physics audit), a DAVIS346 reads about 12 Meps
 (iniVation biasing guide). Delays and drops are counted, never silent, and events still queued
 when a run ends are counted as pending.

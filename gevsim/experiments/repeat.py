@@ -230,8 +230,8 @@ def event_strip(run_file: Path, out: Path, period_s: float | None, duration_s: f
 
 
 #: A stream is bus-limited when its readout lost more than this share of the requested events (dropped by
-#: the arbiter or the rate controller, or still queued at the end): then its counts say what the bus
-#: delivered, not what the pixels made. (Waits alone do not change counts: synchronous flicker bursts queue
+#: the arbiter or the rate controller, not sent because their pixel was waiting for its acknowledge, or still
+#: waiting at the end): then its counts say what the bus delivered, not what the pixels made. (Waits alone do not change counts: synchronous flicker bursts queue
 #: events for a while even where the mean rate fits the bus.)
 BUS_LIMITED_SHARE = 0.01
 
@@ -240,7 +240,7 @@ def bus_limited(readout: dict[str, dict]) -> list[str]:
     """The streams whose readout (a run's :attr:`~gevsim.emulation.summary.RunSummary.readout` counts) limited
     their counts (:data:`BUS_LIMITED_SHARE`)."""
     return sorted(stream for stream, c in readout.items()
-                  if c["dropped"] + c["pending_at_end"] + c["rate_controller_dropped"]
+                  if c["dropped"] + c["pending_at_end"] + c["rate_controller_dropped"] + c.get("unsent", 0)
                   > BUS_LIMITED_SHARE * c["requested"])
 
 

@@ -98,7 +98,7 @@ class SensorPreset:
     def ideal(self) -> SensorPreset:
         """The same sensor with every noise mechanism off (counterfactual runs): each entry of
         :data:`gevsim.pixel.mechanisms.NOISE_MECHANISMS` at its off state, but for the keys an entry's
-        ``ideal_keeps`` keeps with its reason (the light leak and the comparator offsets, as before the
+        ``ideal_keeps`` keeps with its reason (the comparator offsets, as before the
         registry). The mean dark current stays (the floor of the log response, not a noise); its spread
         (DSNU) goes."""
         import dataclasses

@@ -73,8 +73,8 @@ def test_steps_are_split_at_the_lamps_jumps():
 
 
 def test_a_step_too_coarse_for_the_noise_is_sub_stepped():
-    """davis346 at 1 pA (its photoreceptor at 664 Hz): read noise through 2 kHz and 2 kHz poles crosses levels
-    on 1 / (2 pi 2 kHz) = 80 us;
+    """davis346 at 1 pA (its photoreceptor at 664 Hz): read noise through its 2 kHz pole and the 5.67 kHz output
+    pole crosses levels at the Rice frequency sqrt(2000 x 5670) = 3.37 kHz, on 1 / (2 pi 3.37 kHz) = 47 us;
     a step must resolve STEP_FRACTION (0.35) of it (noise rates within ~10 %), else
     each step is split into equal sub-steps."""
     from gevsim.emulation.driver import refine, substeps
@@ -82,14 +82,16 @@ def test_a_step_too_coarse_for_the_noise_is_sub_stepped():
 
     preset = load_preset("davis346")
     limit = coarsest_step_s(preset.photoreceptor, preset.noise, 1e-12)
-    assert limit == pytest.approx(STEP_FRACTION / (2 * np.pi * 2000.0))
+    rice_hz = np.sqrt(preset.noise.read_noise_bandwidth_hz * preset.photoreceptor.second_pole_hz)
+    assert limit == pytest.approx(STEP_FRACTION / (2 * np.pi * rice_hz))
     manifest = load(DATA / "card.toml")
     setup = Setup(manifest=manifest, preset=preset, basis_times_s=np.array([0.0]),
                   current_basis=np.full((1, 1, manifest.render.height, manifest.render.width), 1e-12),
                   waveforms=(from_spec({"type": "dc"}),), duration_s=0.02,
                   variant=types.SimpleNamespace(variant="none"), current_noise=None, render_quality={})
     assert substeps(EmulationConfig(scene=str(DATA / "card.toml"), step_s=2e-5, duration_s=0.02), setup) == 1
-    assert substeps(EmulationConfig(scene=str(DATA / "card.toml"), step_s=1e-4, duration_s=0.02), setup) == 4
+    assert substeps(EmulationConfig(scene=str(DATA / "card.toml"), step_s=1e-4, duration_s=0.02), setup) \
+        == int(np.ceil(1e-4 / limit))
     np.testing.assert_allclose(refine(np.array([3e-4, 6e-4]), 0.0, 3), 1e-4 * np.arange(1, 7))
 
 

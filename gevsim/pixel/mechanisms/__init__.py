@@ -36,14 +36,6 @@ from gevsim.pixel.mechanisms._base import KernelNoise, Mechanism
 
 __all__ = ["NOISE_MECHANISMS", "KernelNoise", "Mechanism", "ideal_values", "kernel_noise", "mechanisms_on"]
 
-#: Why the ideal pixel keeps davis346's light-dependent leak (``leak_light_hz_per_a``; the dark leak goes): with
-#: any leak on, a warm-started DVS draws every pixel's memorised level uniformly within one threshold below the
-#: signal; with none, it starts at the signal. Switching the light leak off too (its rate is ~1e-3 Hz in office
-#: light) moved the noise-free office run (64x48, 20 ms, davis346) from 408-413 to 515 DVS ev/px/s, above the
-#: noisy run's 452-457: a negative noise-induced rate. Kept until the memorised level starts from its stationary
-#: law whatever the leak (issue 34).
-_KEEPS_LIGHT_LEAK = ("the warm start's memorised levels follow whether any leak is on (issue 34); the light "
-                     "leak's own rate is negligible in the noise-free run")
 #: Why the ideal pixel keeps the gradient comparators' offsets: a fixed pattern, as the pre-registry ideal kept
 #: it (gradient noise-free office 64x48: 114-122 ev/px/s with it, 123 without); a counterfactual that drops it
 #: changes what "noise-induced" counts, which is issue 35's sensitivity study to decide.
@@ -90,8 +82,7 @@ NOISE_MECHANISMS: dict[str, Mechanism] = {
     "leak": Mechanism(
         leak.Leak, "events", {"leak_rate_hz": 0.0, "leak_light_hz_per_a": 0.0},
         "Nozaki & Delbruck, IEEE TED 2017 (leak rises with temperature and light)",
-        "the DVS emulator's rng: rates after the thresholds, then the phases", where="gevsim.events.brightness",
-        ideal_keeps={"leak_light_hz_per_a": _KEEPS_LIGHT_LEAK}),
+        "the DVS emulator's rng: rates after the thresholds, then the phases", where="gevsim.events.brightness"),
     "comparator_offset": Mechanism(
         comparator_offset.ComparatorOffset, "events", {"comparator_offset_v": 0.0},
         "Pelgrom et al., JSSC 1989 (offset of a differential pair); assumed sigma", "the gradient emulator's rng",
