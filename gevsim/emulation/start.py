@@ -110,7 +110,8 @@ def burn_in(pr: Photoreceptor, emulators: dict, setup: Setup, *, span_s: float, 
     """Run ``pr`` (created with ``t0_s = -span_s`` and settled) and the ``emulators`` over (-span_s, 0] on the
     settled signal, events discarded (each DVS level first drawn from its stationary law given the noise,
     :meth:`~gevsim.events.BrightnessEmulator.start_from_noise`; the burn-in settles what that law leaves out:
-    the pixels noisy enough to fire both ways, the gradient comparators, the CSDVS levels): the lamps' light (``periodic``: their waveforms, whole periods;
+    the pixels noisy enough to fire both ways, the gradient comparators, the CSDVS levels): the lamps' light
+    (``periodic``: their waveforms, whole periods;
     else held at the first step's) with the poses of t = 0. Each emulator that decodes from a start state
     has it set at t = 0 (``mark_start``). The steps are split at ``grid_waveforms``' jumps (the flicker
     run's lamps: its counterfactuals step, and draw their noise, alike)."""
@@ -120,7 +121,7 @@ def burn_in(pr: Photoreceptor, emulators: dict, setup: Setup, *, span_s: float, 
             em.start_from_noise(*law, signal_ln=pr.settled_ln)
     n_steps = max(1, math.ceil(span_s / step_s - 1e-9))
     grid = span_s / n_steps * np.arange(1, n_steps + 1)  # (0, span]: the burn-in shifted by +span
-    first = held_photocurrent(setup, 0.0, grid[:1]) if not periodic else None
+    first = held_photocurrent(setup, 0.0, grid[:1])  # the held light when not periodic
     for a in range(0, n_steps, chunk_steps):
         b = min(a + chunk_steps, n_steps)
         t0 = float(grid[a - 1]) if a else 0.0

@@ -45,14 +45,17 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from gevsim._portable import log_scalar
 from gevsim.pixel.params import ARBITRATIONS
 
-#: Delay histogram: bin 0 holds zero waits, bins 1.. are log-spaced from DELAY_LO_US by DELAY_STEP.
+#: Delay histogram: bin 0 holds zero waits, bins 1.. are log-spaced from DELAY_LO_US,
+#: DELAY_DECADES_PER_BIN decades each.
 DELAY_BINS = 64
 DELAY_LO_US = 0.1
 DELAY_DECADES_PER_BIN = 0.125
 
 _ROW_BURST, _ROW_COLUMN, _ROW_QUEUE = 0, 1, 2
+LN10 = 2.302585092994046
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,7 @@ if tuple(ARBITERS) != ARBITRATIONS:
 def _delay_bin(wait_us):
     if wait_us <= 0.0:
         return 0
-    b = 1 + int(math.floor(math.log10(max(wait_us, DELAY_LO_US) / DELAY_LO_US) / DELAY_DECADES_PER_BIN))
+    b = 1 + int(math.floor(log_scalar(max(wait_us, DELAY_LO_US) / DELAY_LO_US) / (LN10 * DELAY_DECADES_PER_BIN)))
     return min(b, DELAY_BINS - 1)
 
 
@@ -122,7 +125,7 @@ def _next_row(policy, row_count, row_queued, queue, q, cursor):
 
 
 @njit(cache=True)
-def serve(t_in, r_in, p_in, horizon_us, end_us, final, service_us, max_delay_us, hold_us, policy, per_row,
+def _serve(t_in, r_in, p_in, horizon_us, end_us, final, service_us, max_delay_us, hold_us, policy, per_row,
           pend, pend_t, pend_p, busy_until, row_count, row_queued, queue, q, cursor, col_cursor, latched, burst,
           bus, out_r, out_p, out_t, stats, hist):
     """Serve requests ``r_in`` (requester ids) arriving at ``t_in`` (us, sorted) with polarities ``p_in``

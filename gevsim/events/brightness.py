@@ -103,18 +103,18 @@ class BrightnessEmulator:
         """Draw each pixel's start level from its stationary law given its noise (standard deviation
         ``sigma_ln``, Rice frequency ``crossings_hz``, ``correlation`` over the refractory period), its leak
         and its thresholds
-        (:func:`gevsim.events.stationary.stationary_levels`), in place of the uniform leak phase.
+        (:func:`gevsim.events.stationary.draw_levels`), in place of the uniform leak phase.
         ``signal_ln``: the settled noise-free signal (the levels are drawn about it, not about the first
         noisy sample, which would add that sample's noise to every level; the light leak grows with exp of it)."""
-        from gevsim.events.stationary import stationary_levels
+        from gevsim.events.stationary import draw_levels
 
         n = self.threshold_on_ln.size
         drift = self.leak_ln_per_s.copy()
         if self.leak_light.size:
-            drift += self.leak_light * np.exp(np.asarray(signal_ln, float).reshape(-1))
+            drift += self.leak_light * pm.exp(np.asarray(signal_ln, float).reshape(-1))
         uniform = np.random.default_rng(self.start_seed).random(n)
         u = np.empty(n)
-        stationary_levels(self.threshold_on_ln, self.threshold_off_ln, np.asarray(sigma_ln, float).reshape(-1),
+        draw_levels(self.threshold_on_ln, self.threshold_off_ln, np.asarray(sigma_ln, float).reshape(-1),
                           np.asarray(crossings_hz, float).reshape(-1), np.asarray(correlation, float).reshape(-1),
                           drift, float(self.params.reset_noise_ln),
                           uniform, u)

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from gevsim.events.arbiter import ARBITERS, DELAY_BINS, delay_quantile_us, serve
+from gevsim.events.arbiter import ARBITERS, DELAY_BINS, _serve, delay_quantile_us
 from gevsim.pixel._kernels import normal, pixel_bits, stream_key
 from gevsim.pixel.params import ReadoutParams
 
@@ -243,6 +243,7 @@ class Readout:
                 events = events[~late]
             return events
         if self.arbiter is None:
+            assert self.shape is not None  # checked in __init__
             self.arbiter = _ArbiterState(self.shape, axes=2 if "axis" in (events.dtype.names or ()) else 1)
         return self.arbiter.serve(self, events, horizon=horizon, end_us=end_us)
 
@@ -293,10 +294,11 @@ class _ArbiterState:
         if self.axes == 2:
             r_in += events["axis"].astype(np.int64)
         final = horizon is None
+        limit_us = math.inf if horizon is None else float(horizon)
         n_out = len(events) + int(self.q[2]) + int(self.burst[2] - self.burst[1])
         out_r, out_p, out_t = np.empty(n_out, np.int64), np.empty(n_out, np.int8), np.empty(n_out, np.int64)
-        m, _ = serve(events["t"].astype(np.float64), r_in, events["p"].astype(np.int8),
-                     math.inf if final else float(horizon), math.inf if end_us is None else float(end_us), final,
+        m, _ = _serve(events["t"].astype(np.float64), r_in, events["p"].astype(np.int8),
+                     limit_us, math.inf if end_us is None else float(end_us), final,
                      1e6 / p.max_rate_eps, p.max_delay_s * 1e6, readout.hold_us, ARBITERS[p.arbitration].code,
                      self.per_row, self.pend, self.pend_t, self.pend_p, self.busy_until, self.row_count,
                      self.row_queued, self.queue, self.q, self.cursor, self.col_cursor, self.latched, self.burst,

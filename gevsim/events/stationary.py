@@ -29,10 +29,17 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from gevsim._portable import exp_scalar
+
 #: Cells of the level grid between the two thresholds.
 CELLS = 128
 #: Passes of the fixed point between the density and where its events reinject (4 settle it to < 1 %).
 ITERATIONS = 4
+
+
+@njit(inline="always")
+def _gauss(z):
+    return exp_scalar(-0.5 * z * z)
 
 
 @njit(cache=True)
@@ -42,14 +49,14 @@ def _density(lo, h, theta_on, theta_off, s, nu, drift, mix, p):
     total = 0.0
     for k in range(CELLS - 1, -1, -1):
         u = lo + (k + 0.5) * h
-        rate = nu * (math.exp(-0.5 * ((theta_on + u) / s) ** 2) + math.exp(-0.5 * ((theta_off - u) / s) ** 2))
+        rate = nu * (_gauss((theta_on + u) / s) + _gauss((theta_off - u) / s))
         g = 0.0
         for j in range(2):
             if mix[j, 0] > 0.0:
-                g += mix[j, 0] / mix[j, 2] * math.exp(-0.5 * ((u - mix[j, 1]) / mix[j, 2]) ** 2)
+                g += mix[j, 0] / mix[j, 2] * _gauss((u - mix[j, 1]) / mix[j, 2])
         if drift > 0.0:
             x = rate * h / drift
-            decay = math.exp(-x)
+            decay = exp_scalar(-x)
             gain = g * h / drift if x < 1e-12 else g * (1.0 - decay) / rate
         else:
             decay, gain = 0.0, g / max(rate, 1e-300)
@@ -60,7 +67,8 @@ def _density(lo, h, theta_on, theta_off, s, nu, drift, mix, p):
 
 
 @njit(cache=True, parallel=True)
-def stationary_levels(theta_on, theta_off, sigma, nu, rho, drift, reset_sigma, uniform, out):
+def draw_levels(theta_on: np.ndarray, theta_off: np.ndarray, sigma: np.ndarray, nu: np.ndarray, rho: np.ndarray,
+                drift: np.ndarray, reset_sigma: float, uniform: np.ndarray, out: np.ndarray) -> None:
     """Draw u (out) per pixel by the inverse of its stationary CDF at ``uniform`` (all arrays (P,); ``rho``:
     the noise's correlation over the refractory period)."""
     for i in prange(out.shape[0]):
@@ -88,7 +96,7 @@ def stationary_levels(theta_on, theta_off, sigma, nu, rho, drift, reset_sigma, u
                 u = lo + (k + 0.5) * h
                 for j in range(2):
                     n = theta_on[i] + u if j == 0 else u - theta_off[i]
-                    f = nu[i] * math.exp(-0.5 * (n / s) ** 2) * p[k]
+                    f = nu[i] * _gauss(n / s) * p[k]
                     flux[j] += f
                     m1[j] += f * n
                     m2[j] += f * n * n

@@ -231,8 +231,8 @@ def event_strip(run_file: Path, out: Path, period_s: float | None, duration_s: f
 
 #: A stream is bus-limited when its readout lost more than this share of the requested events (dropped by
 #: the arbiter or the rate controller, not sent because their pixel was waiting for its acknowledge, or still
-#: waiting at the end): then its counts say what the bus delivered, not what the pixels made. (Waits alone do not change counts: synchronous flicker bursts queue
-#: events for a while even where the mean rate fits the bus.)
+#: waiting at the end): then its counts say what the bus delivered, not what the pixels made. (Short waits
+#: change no counts: synchronous flicker bursts wait a while even where the mean rate fits the bus.)
 BUS_LIMITED_SHARE = 0.01
 
 

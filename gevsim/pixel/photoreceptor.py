@@ -184,7 +184,8 @@ class Photoreceptor:
             nonlocal var, dvar, cov
             var = var + x * beta / (alpha + beta)
             dvar = dvar + x * alpha * beta * beta / (alpha + beta)
-            rho = (beta * np.exp(-alpha * lag_s) - alpha * np.exp(-beta * lag_s)) / (beta - alpha)
+            decay_a, decay_b = pm.exp(np.asarray(-alpha * lag_s, float)), pm.exp(np.asarray(-beta * lag_s, float))
+            rho = (beta * decay_a - alpha * decay_b) / (beta - alpha)
             cov = cov + x * beta / (alpha + beta) * rho
 
         if self.shot_q > 0 or self.amp_ln2_hz > 0:
@@ -195,7 +196,7 @@ class Photoreceptor:
                 two_poles(self.fn_var[0], 2.0 * math.pi * float(separated_hz(self.fn_hz[0], p.second_pole_hz)))
             else:
                 var = var + self.fn_var[k]
-                cov = cov + self.fn_var[k] * math.exp(-2.0 * math.pi * self.fn_hz[k] * lag_s)
+                cov = cov + self.fn_var[k] * pm.exp(np.asarray(-2.0 * math.pi * self.fn_hz[k] * lag_s, float))
         safe = np.maximum(var, 1e-300)
         return np.sqrt(var), np.sqrt(dvar / safe) / (2.0 * math.pi), cov / safe
 
