@@ -73,10 +73,12 @@ def test_steps_are_split_at_the_lamps_jumps():
 
 
 def test_a_step_too_coarse_for_the_noise_is_sub_stepped():
-    """davis346 at 1 pA (its photoreceptor at 664 Hz): read noise through its 2 kHz pole and the 5.67 kHz output
-    pole crosses levels at the Rice frequency sqrt(2000 x 5670) = 3.37 kHz, on 1 / (2 pi 3.37 kHz) = 47 us;
-    a step must resolve STEP_FRACTION (0.35) of it (noise rates within ~10 %), else
-    each step is split into equal sub-steps."""
+    """davis346 at 1 pA (its photoreceptor at 664 Hz): read noise through its 2 kHz pole and the 2 kHz output
+    pole crosses levels at the Rice frequency sqrt(2000 x 2000) = 2 kHz, on 1 / (2 pi 2 kHz) = 80 us;
+    a step must resolve STEP_FRACTION (0.35) of it, 27.9 us (noise rates within ~10 %), else
+    each step is split into equal sub-steps: 1 for 20 us, 4 for 100 us. (The kernel moves the read-noise
+    pole to 1980 Hz, 1 % from the equal output pole (gevsim.pixel._cascade.POLE_GAP); the step limit takes
+    the poles as stated: the separated ones, sqrt(1980 x 2000) = 1.99 kHz, would allow a step 0.5 % longer.)"""
     from gevsim.emulation.driver import refine, substeps
     from gevsim.pixel.noise import STEP_FRACTION, coarsest_step_s
 
