@@ -43,24 +43,34 @@ def _gauss(z):
 
 
 @njit(cache=True)
-def _density(lo, h, theta_on, theta_off, s, nu, drift, mix, p):
+def _cells(lo, h, theta_on, theta_off, s, nu, drift, r_on, r_off, decay, weight):
+    """Per cell, what does not change between passes: the ON and OFF crossing rates, the survival over
+    the cell at the leak's drift (decay) and the weight of a reinjection there (gain = g x weight)."""
+    for k in range(CELLS):
+        u = lo + (k + 0.5) * h
+        r_on[k] = nu * _gauss((theta_on + u) / s)
+        r_off[k] = nu * _gauss((theta_off - u) / s)
+        rate = r_on[k] + r_off[k]
+        if drift > 0.0:
+            x = rate * h / drift
+            decay[k] = exp_scalar(-x)
+            weight[k] = h / drift if x < 1e-12 else (1.0 - decay[k]) / rate
+        else:
+            decay[k], weight[k] = 0.0, 1.0 / max(rate, 1e-300)
+
+
+@njit(cache=True)
+def _density(lo, h, decay, weight, mix, p):
     """p (CELLS,) for the reinjection mixture ``mix`` = (weight, mean, sd) x 2; returns its total."""
     carry = 0.0
     total = 0.0
     for k in range(CELLS - 1, -1, -1):
         u = lo + (k + 0.5) * h
-        rate = nu * (_gauss((theta_on + u) / s) + _gauss((theta_off - u) / s))
         g = 0.0
         for j in range(2):
             if mix[j, 0] > 0.0:
                 g += mix[j, 0] / mix[j, 2] * _gauss((u - mix[j, 1]) / mix[j, 2])
-        if drift > 0.0:
-            x = rate * h / drift
-            decay = exp_scalar(-x)
-            gain = g * h / drift if x < 1e-12 else g * (1.0 - decay) / rate
-        else:
-            decay, gain = 0.0, g / max(rate, 1e-300)
-        carry = carry * decay + gain
+        carry = carry * decay[k] + g * weight[k]
         p[k] = carry
         total += carry
     return total
@@ -84,9 +94,11 @@ def draw_levels(theta_on: np.ndarray, theta_off: np.ndarray, sigma: np.ndarray, 
         mix[0, 0], mix[0, 2] = 1.0, math.sqrt(s * s + reset_sigma * reset_sigma) + 1e-12
         mix[1, 2] = spread
         p = np.empty(CELLS)
+        r_on, r_off, decay, weight = np.empty(CELLS), np.empty(CELLS), np.empty(CELLS), np.empty(CELLS)
+        _cells(lo, h, theta_on[i], theta_off[i], s, nu[i], drift[i], r_on, r_off, decay, weight)
         total = 0.0
         for _ in range(ITERATIONS):
-            total = _density(lo, h, theta_on[i], theta_off[i], s, nu[i], drift[i], mix, p)
+            total = _density(lo, h, decay, weight, mix, p)
             # Where the pixels fire from: each polarity's flux and the mean and variance of the noise level
             # it crossed (n = theta_on + u for ON, u - theta_off for OFF); their release is at rho times it.
             flux = np.zeros(2)
@@ -96,7 +108,7 @@ def draw_levels(theta_on: np.ndarray, theta_off: np.ndarray, sigma: np.ndarray, 
                 u = lo + (k + 0.5) * h
                 for j in range(2):
                     n = theta_on[i] + u if j == 0 else u - theta_off[i]
-                    f = nu[i] * _gauss(n / s) * p[k]
+                    f = (r_on[k] if j == 0 else r_off[k]) * p[k]
                     flux[j] += f
                     m1[j] += f * n
                     m2[j] += f * n * n
