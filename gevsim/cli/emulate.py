@@ -67,13 +67,15 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     print(f"gevsim: {summary.width}x{summary.height}, {summary.steps} steps of "
           f"{config.step_s * 1e6:g} us ({summary.duration_s * 1e3:g} ms), {summary.frames} ground-truth frames;"
           f" pixel model {summary.pixel_steps_per_s / 1e6:.1f} M pixel-steps/s", file=sys.stderr)
-    print(f"{'stream':20s} {'events':>10s} {'events/s':>11s} {'per pixel/s':>11s} {'p/frame':>8s} "
-          f"{'emulator s':>10s}")
+    print(f"{'stream':20s} {'made':>10s} {'delivered':>10s} {'lost':>10s} {'events/s':>11s} {'per pixel/s':>11s} "
+          f"{'p/frame':>8s} {'emulator s':>10s}  (made: the pixels' crossings; delivered: what the bus carried)")
     for (name, count), seconds in zip(summary.counts.items(), summary.event_s.values()):
         st = stats[name]
         p_frame = f"{st.event_probability:8.3f}" if config.frame_rate_hz > 0 else f"{'-':>8s}"  # no frames: none
-        print(f"{name:20s} {count:10d} {st.rates_hz['total']:11.4g} {st.rates_hz['per_pixel_hz']:11.4g} "
-              f"{p_frame} {seconds:10.2f}")
+        made, lost, note = bus_columns(summary.readout.get(name, {}), count, pixels=summary.width * summary.height,
+                                       duration_s=summary.duration_s)
+        print(f"{name:20s} {made:10d} {count:10d} {lost:10d} {st.rates_hz['total']:11.4g} "
+              f"{st.rates_hz['per_pixel_hz']:11.4g} {p_frame} {seconds:10.2f}{note}")
     print(f"gevsim: wrote {args.out} in {summary.total_s:.1f} s", file=sys.stderr)
     return 0
 
@@ -140,3 +142,20 @@ def _emulate_frames(args: argparse.Namespace) -> int:
     print(f"gevsim: {summary['frames']} frames {summary['width']}x{summary['height']} from {source}; "
           f"wrote {args.out}", file=sys.stderr)
     return 0
+
+
+#: A stream whose delivered rate is within this share of its bus's cap is at the cap: its count says what the
+#: bus carried, not what the pixels made.
+AT_CAP_SHARE = 0.98
+
+
+def bus_columns(readout: dict, delivered: int, *, pixels: int, duration_s: float) -> tuple[int, int, str]:
+    """(made, lost, note) of a stream from its readout counts: the pixels' crossings, those the bus did not
+    deliver (not sent by a waiting pixel, dropped, filtered, still waiting at the end), and "  at the bus cap
+    (N ev/px/s)" where the delivered rate is the cap's."""
+    made = int(readout.get("requested", delivered))
+    cap = float(readout.get("max_rate_eps", float("inf")))
+    at_cap = cap < float("inf") and delivered >= AT_CAP_SHARE * cap * duration_s
+    note = f"  at the bus cap ({cap / pixels:.4g} ev/px/s)" if at_cap else ""
+    return made, made - delivered, note
+

@@ -1,6 +1,7 @@
 """The emulation driver end to end on tiny scenes: outputs, chunking, seeds, counterfactuals."""
 
 import dataclasses
+import json
 import tomllib
 from pathlib import Path
 
@@ -107,6 +108,13 @@ def test_cli_emulate_and_frame_mode(tmp_path, capsys):
     assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 0
     table = capsys.readouterr().out
     assert "gradient_events" in table and "events/s" in table
+    # Made, delivered and lost per stream, and made = delivered + lost (the readout's conservation).
+    with EventReader(tmp_path / "x.h5") as r:
+        readout = json.loads(r.attrs["readout_json"])
+        delivered = {s: len(r.read(s)) for s in readout}
+    for line in table.splitlines()[1:]:
+        name, made, got, lost = line.split()[:4]
+        assert int(got) == delivered[name] and int(made) == readout[name]["requested"] == int(got) + int(lost)
     # Frame mode from a folder of PNGs.
     import imageio.v3 as iio
 
@@ -306,3 +314,14 @@ def test_a_time_grid_shorter_than_the_clock_tick_is_refused_up_front(tmp_path, c
     err = capsys.readouterr().err
     assert "run.toml" in err and "emulation.duration_s" in err and "1 us" in err and err.count("\n") == 1
     assert not out.exists() and not (tmp_path / "c").exists()
+
+
+def test_a_stream_at_its_bus_cap_says_so():
+    """The emulate summary marks a stream whose delivered rate is the bus's (issue 35): there the count is the bus,
+    not the pixels."""
+    from gevsim.cli.emulate import bus_columns
+
+    readout = {"requested": 5000, "max_rate_eps": 1e5}
+    assert bus_columns(readout, 1000, pixels=100, duration_s=0.01) == (5000, 4000, "  at the bus cap (1000 ev/px/s)")
+    assert bus_columns(readout, 900, pixels=100, duration_s=0.01) == (5000, 4100, "")
+    assert bus_columns({}, 7, pixels=100, duration_s=0.01) == (7, 0, "")  # no readout counts: nothing lost
