@@ -149,6 +149,8 @@ def _serve(t_in, r_in, p_in, horizon_us, end_us, final, service_us, max_delay_us
             i += 1
         if bus[0] >= limit:
             break
+        if burst[1] >= burst[2] and q[2] == 0:  # every arrival so far was unsent: idle until the next one
+            continue
         if burst[1] >= burst[2]:  # pick a row (and latch it, in burst modes)
             row = _next_row(policy, row_count, row_queued, queue, q, cursor)
             if row < 0:  # cannot happen: every pending request's row is found

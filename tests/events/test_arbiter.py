@@ -94,3 +94,18 @@ def test_row_burst_reads_a_row_in_column_order_and_rows_in_turn():
     np.testing.assert_array_equal(out["y"], np.repeat([3, 7], W))
     np.testing.assert_array_equal(out["x"], np.tile(np.arange(W), 2))
     np.testing.assert_array_equal(out["t"], np.arange(2 * W))
+
+
+@pytest.mark.parametrize("arbitration", list(ARBITERS))
+def test_the_bus_goes_on_after_an_unsent_crossing(arbitration):
+    """Pixel (0, 0) is read at 0 us and held 50 us, so its crossing at 10 us is unsent; pixel (3, 3)'s request at
+    20 us is then read at once. (A bus left with nothing pending after an unsent crossing stopped serving: the
+    office 96x72 run delivered every event in its first millisecond.)"""
+    ev = np.zeros(3, BRIGHTNESS_DTYPE)
+    ev["t"] = [0, 10, 20]
+    ev["x"][2] = ev["y"][2] = 3
+    r = Readout(ReadoutParams(max_rate_eps=1e6, arbitration=arbitration), shape=(H, W), hold_s=50e-6)
+    out = r.process(ev, end_us=1000)
+    np.testing.assert_array_equal(out["t"], [0, 20])
+    s = r.summary()
+    assert (s["delivered"], s["unsent"], s["pending_at_end"]) == (2, 1, 0)
