@@ -343,7 +343,7 @@ def test_emulate_without_frames_prints_no_nan(tmp_path, capsys, scene):
     path = emulation(tmp_path, scene, extra="frame_rate_hz = 0")
     assert cli.main(run_config("emulate", path, tmp_path)) == 0
     out = capsys.readouterr().out
-    assert "nan" not in out and out.splitlines()[1].split()[4] == "-"
+    assert "nan" not in out and out.splitlines()[1].split()[6] == "-"  # p/frame, after made, delivered, lost
 
 
 def test_every_loader_shares_one_prelude(tmp_path):

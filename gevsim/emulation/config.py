@@ -16,6 +16,7 @@ aps = false                    # also emulate APS frames (needs the preset's [ap
 aps_exposure_s = 5e-4
 cold_start = false             # true: the sensor starts as if just switched on (no leak before 1 / rate)
 burn_in_s = 0.01               # the chain runs this long (whole lamp periods) before t = 0, events discarded
+footprint = "scene"            # "chip": the pixels are a centred window of the chip at its native pitch
 
 [render]                       # overrides of the scene manifest's [render]
 width = 64
@@ -62,10 +63,13 @@ TABLES = ("emulation", "render", *(cls.TABLE for cls in PARAMS), "light", "senso
 #: photocurrent after the render.
 MAX_LIGHT_SCALE = MAX_LUMINANCE_CD_M2 / 1.0
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
-                  "aps", "aps_exposure_s", "cold_start", "burn_in_s")
+                  "aps", "aps_exposure_s", "cold_start", "burn_in_s", "footprint")
 #: How long the pixel chain runs before t = 0 by default, rounded up to whole lamp periods (issue 34: with
 #: the DVS levels drawn from their stationary law, 10 ms settles the rest; docs/start-state.md measures it).
 BURN_IN_S = 0.01
+#: ``scene``: the emulated pixels span the scene's field of view; ``chip``: a centred window of the chip at its
+#: native pitch (:mod:`gevsim.emulation.footprint`, which checks it names these).
+FOOTPRINTS = ("scene", "chip")
 #: The longest burn-in a config may ask for.
 MAX_BURN_IN_S = 10.0
 
@@ -99,6 +103,7 @@ class EmulationConfig:
     aps_exposure_s: float = 5e-4
     cold_start: bool = False  # True: every pixel starts as if just switched on (leak phase 0)
     burn_in_s: float = BURN_IN_S  # the chain runs this long before t = 0 (not with cold_start)
+    footprint: str = "scene"  # "chip": a centred window of the chip at native pitch (gevsim.emulation.footprint)
     render: dict = field(default_factory=dict)
     thresholds_ln: tuple[float, ...] = GradientConfig.thresholds_ln
     hysteresis_ln: float = GradientConfig.hysteresis_ln
@@ -126,7 +131,7 @@ class EmulationConfig:
         import tomli_w
 
         em = {k: getattr(self, k) for k in ("scene", "sensor", "seed", "step_s", "chunk_steps", "frame_rate_hz",
-                                             "aps", "aps_exposure_s", "cold_start", "burn_in_s")}
+                                             "aps", "aps_exposure_s", "cold_start", "burn_in_s", "footprint")}
         em["emulators"] = list(self.emulators)
         if self.duration_s is not None:
             em["duration_s"] = self.duration_s
@@ -192,6 +197,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         **flags,
         aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
         burn_in_s=float(r.number(em, "burn_in_s", "emulation", BURN_IN_S, minimum=0.0, maximum=MAX_BURN_IN_S)),
+        footprint=_footprint(em, r),
         render=dict(render),
         **emulator_params,
         sensor_overrides=dict(r.table(raw, "sensor")),
@@ -201,6 +207,14 @@ def load_config(path: str | Path) -> EmulationConfig:
         source=r.source,
         text=path.read_text(),
     )
+
+
+def _footprint(em: dict, r: TomlReader) -> str:
+    """``emulation.footprint``: one of :data:`FOOTPRINTS`."""
+    value = em.get("footprint", "scene")
+    if value not in FOOTPRINTS:
+        r.fail("emulation.footprint", f"expected one of {', '.join(repr(f) for f in FOOTPRINTS)}, got {value!r}")
+    return str(value)
 
 
 def _scene_and_sensor(em: dict, r: TomlReader, folder: Path) -> tuple[str, str]:

@@ -33,6 +33,7 @@ from gevsim.emulation.emulators import (
     SEED_SLOTS,
     make_emulator,
 )
+from gevsim.emulation.footprint import chip_window
 from gevsim.emulation.photocurrent import Setup, photocurrent_at  # noqa: F401 (imported from here by callers)
 from gevsim.emulation.start import (  # noqa: F401 (step_grid, refine, held_photocurrent: their home before #34)
     MAX_SETTLE_PERIOD_S,
@@ -82,6 +83,8 @@ def prepare(config: EmulationConfig, *, cache_dir: str | os.PathLike | None = No
     preset = load_preset(config.sensor)
     if config.sensor_overrides:
         preset = with_overrides(preset, config.sensor_overrides, source=config.source, where="sensor")
+    if config.footprint == "chip":  # the pixels see what the chip's own pixels see
+        manifest = chip_window(manifest, preset, source=config.source or None)
     if config.aps and preset.aps is None:
         raise ConfigError(f"sensor preset {preset.name!r} has no [aps] table", source=config.source,
                           key="emulation.aps")

@@ -68,7 +68,7 @@ from pathlib import Path
 from gevsim import __version__
 from gevsim._validate import FieldError
 from gevsim.config import TomlReader, load_table, resolve_relative
-from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig
+from gevsim.emulation.config import FOOTPRINTS, MAX_LIGHT_SCALE, EmulationConfig
 from gevsim.emulation.emulators import EMULATORS, PARAMS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
@@ -80,7 +80,7 @@ from gevsim.resources import MAX_REPEATS, MAX_STUDY_RUNS, at_most
 from gevsim.timebase import TimeGrid
 
 STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_group", "duration_s", "step_s",
-              "frame_rate_hz", "seed", "methods", "render", "chunk_steps", "repeats")
+              "frame_rate_hz", "seed", "methods", "render", "chunk_steps", "repeats", "footprint")
 #: Sweep axes that override a sensor preset parameter (see gevsim.pixel.presets.with_overrides).
 SENSOR_AXES = ("threshold_mismatch_ln", "cutoff_hz", "max_cutoff_hz", "dark_current_a", "read_noise_v",
                "pixel_pitch_m", "fill_factor", "refractory_s", "threshold_on_ln", "threshold_off_ln")
@@ -222,6 +222,11 @@ def _base(st: dict, emulators: tuple[str, ...], r: TomlReader, folder: Path) -> 
         r.fail(f"study.{err.field}", str(err))
     if not isinstance(base["sensor"], str):
         r.fail("study.sensor", f"expected a sensor preset name or .toml path, got {base['sensor']!r}")
+    if "footprint" in st:  # only when given: the runs of studies without it keep their ids
+        if st["footprint"] not in FOOTPRINTS:
+            r.fail("study.footprint", f"expected one of {', '.join(repr(f) for f in FOOTPRINTS)}, "
+                                      f"got {st['footprint']!r}")
+        base["footprint"] = st["footprint"]
     return base
 
 
@@ -314,7 +319,7 @@ def run_config(study: Study, params: dict, *, seed: int | None = None) -> Emulat
         scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]),
         seed=b["seed"] if seed is None else seed,
         duration_s=b["duration_s"], step_s=b["step_s"], chunk_steps=b["chunk_steps"],
-        frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]),
+        frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]), footprint=b.get("footprint", "scene"),
         aps=(any(METHODS[m].needs_aps for m in b["methods"])
              and load_preset(params.get("sensor", b["sensor"])).aps is not None),
         aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
