@@ -16,6 +16,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
+
+from gevsim import _portable as pm
 from gevsim.emulation.config import FOOTPRINTS  # noqa: F401 (the names a config may give)
 from gevsim.errors import ConfigError
 from gevsim.pixel.presets import SensorPreset
@@ -30,8 +33,8 @@ def chip_window(manifest: SceneManifest, preset: SensorPreset, *, source: str | 
         raise ConfigError(f"a {r.width}x{r.height} window at the chip's footprint does not fit the {preset.name} chip "
                           f"({preset.width}x{preset.height}): emulate at most the chip, or footprint = \"scene\"",
                           source=source, key="emulation.footprint")
-    half = math.atan(math.tan(math.radians(manifest.fov_deg) / 2) * r.width / preset.width)
-    fov = math.degrees(2 * half)
+    tan_half = float(pm.tan(np.float64(math.radians(manifest.fov_deg) / 2)))
+    fov = math.degrees(2 * float(pm.atan(np.float64(tan_half * r.width / preset.width))))
     raw = dict(manifest.raw)
     raw["camera"] = {**raw.get("camera", {}), "fov_deg": fov}
     return dataclasses.replace(manifest, fov_deg=fov, raw=raw)
