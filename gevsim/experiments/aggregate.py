@@ -23,7 +23,9 @@ Row keys: ``<e>_flicker_per_pixel_s`` (mean over repeats) with ``_low``,
 ``_high`` (95 % interval), likewise ``_noise_``, ``_render_floor_``,
 ``<e>_phase_locked_per_pixel_s`` (+ ``_low``, ``_high``, ``_p``) and
 ``<e>_phase_locked_control_per_pixel_s``; ``flicker_rejection_ratio`` (+ ``_low``,
-``_high``, ``_method``); ``<method>_ssim`` etc. (mean, + ``_low``, ``_high``).
+``_high``, ``_method``); ``<method>_ssim`` etc. (mean, + ``_low``, ``_high``). The same estimates at the
+pixels, before the bus (the readout's requests: what the pixels made, whatever the bus delivered):
+``<e>_pixel_flicker_per_pixel_s``, ``<e>_pixel_noise_per_pixel_s`` and ``pixel_flicker_rejection_ratio``.
 """
 
 from __future__ import annotations
@@ -81,7 +83,7 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
     maps = {k: arrays[0][k] for k in ("mean_current_a", "chip_lux", "dominant_group")}
     row["chip_lux_median"] = float(np.median(maps["chip_lux"]))
     row["group_names"] = [str(g) for g in arrays[0]["group_names"]]
-    flicker = {}
+    flicker, pixel_flicker = {}, {}
     for e in emulators:
         stream = EMULATORS[e].stream
 
@@ -94,6 +96,8 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
         row[f"{e}_bus_limited"] = any(stream in r.get("bus_limited", {}).get(v, []) for r in records
                                       for v in ("run", "no_flicker"))
         flicker[e] = (run - nf) * scale
+        if all("made" in r for r in records):  # the pixels' own rates, before the bus (issue 35)
+            pixel_flicker[e] = _pixel_level(row, records, e, scale)
         _put(row, f"{e}_flicker_per_pixel_s", mean_interval(flicker[e], confidence=CONFIDENCE))
         _put(row, f"{e}_noise_per_pixel_s", mean_interval((nf - ideal) * scale, confidence=CONFIDENCE))
         _put(row, f"{e}_render_floor_per_pixel_s", mean_interval((floor - ideal) * scale, confidence=CONFIDENCE))
@@ -118,6 +122,9 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
             for k in ("", "_low", "_high"):
                 row[f"flicker_rejection_ratio{k}"] = float("nan")
             row["flicker_rejection_ratio_at_least"] = None
+    if baseline in pixel_flicker and candidate in pixel_flicker:  # the same ratio at the pixels: no bus
+        ratio = ratio_interval(pixel_flicker[baseline], pixel_flicker[candidate], confidence=CONFIDENCE)
+        _put(row, "pixel_flicker_rejection_ratio", ratio)
     regions = map_regions(maps["dominant_group"], maps["chip_lux"])
     for e in emulators:
         row.update({f"{e}_flicker_{name}_share": share for name, share
@@ -135,6 +142,16 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
     row["seconds"] = float(sum(r["seconds"] for r in records))
     row["gevsim"] = first["gevsim"]
     return row, maps
+
+
+def _pixel_level(row: dict, records: list[dict], emulator: str, scale: float) -> np.ndarray:
+    """Put an emulator's flicker- and noise-induced rates at the pixels (the readout's requests) in ``row``;
+    returns the per-repeat flicker-induced rates."""
+    stream = EMULATORS[emulator].stream
+    run, nf, ideal = (np.array([r["made"][v][stream] for r in records], float) for v in ("run", "no_flicker", "ideal"))
+    _put(row, f"{emulator}_pixel_flicker_per_pixel_s", mean_interval((run - nf) * scale, confidence=CONFIDENCE))
+    _put(row, f"{emulator}_pixel_noise_per_pixel_s", mean_interval((nf - ideal) * scale, confidence=CONFIDENCE))
+    return (run - nf) * scale
 
 
 def ratio_lower_bound(row: dict, repeats: int, pixel_seconds: float) -> float | None:
@@ -188,3 +205,18 @@ def agreement(row: dict, emulator: str) -> str | None:
     return (f"{EMULATORS[emulator].label}: the rate is locked to the lamp ({pl.format()} ev/px/s RMS) but the "
             f"counterfactual's flicker-induced rate is {cf.format()}: flicker moves events in time more than it "
             "adds them")
+
+
+def pixel_level_text(row: dict) -> str:
+    """The headline pair's flicker-induced rates and ratio at the pixels (before the bus), or "" where the
+    records did not keep what the pixels made."""
+    baseline, candidate = HEADLINE
+    rates = [interval_of(row, f"{e}_pixel_flicker_per_pixel_s") for e in HEADLINE]
+    ratio = interval_of(row, "pixel_flicker_rejection_ratio")
+    if rates[0] is None or rates[1] is None or ratio is None:
+        return ""
+    bounded = np.isfinite(ratio.low) and np.isfinite(ratio.high)
+    return (f"; at the pixels, before the bus, {EMULATORS[baseline].label} {rates[0].format()} and "
+            f"{EMULATORS[candidate].label} {rates[1].format()} flicker-induced ev/px/s, a ratio of "
+            + (ratio.format() if bounded else "not determined (Fieller's set is unbounded)"))
+

@@ -136,6 +136,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     group = flicker_group(study, params.get("scene", study.base["scene"]))
     frequency = 1.0 / periods[group] if group in periods else None
     counts: dict[str, dict[str, int]] = {}
+    made: dict[str, dict[str, int]] = {}  # what the pixels made (the readout's requests), before the bus
     saturated: dict[str, list[str]] = {}
     folded: dict[str, dict[str, dict]] = {}
     for name, kw in VARIANTS.items():
@@ -143,6 +144,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
             else setup
         info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
         counts[name] = dict(info.counts)
+        made[name] = {stream: int(c["requested"]) for stream, c in info.readout.items()}
         saturated[name] = bus_limited(info.readout)
         if name == "run":
             stats, summary = summarize(folder / "run.h5"), info
@@ -154,7 +156,8 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
                                      summary.duration_s) for e in study.base["emulators"]}
     record: dict[str, Any] = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
               "width": w, "height": h, "duration_s": summary.duration_s, "steps": summary.steps,
-              "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts, "bus_limited": saturated,
+              "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts, "made": made,
+              "bus_limited": saturated,
               "event_probability": {e: stats[EMULATORS[e].stream].event_probability
                                     for e in study.base["emulators"]},
               "render": _render_quality(setup.render_quality), "metrics": {}}

@@ -20,7 +20,7 @@ import gevsim
 from gevsim.emulation.emulators import EMULATORS, HEADLINE
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments import study_plots
-from gevsim.experiments.aggregate import agreement, interval_of, row_emulators, row_methods
+from gevsim.experiments.aggregate import agreement, interval_of, pixel_level_text, row_emulators, row_methods
 from gevsim.experiments.study import Study, run_id
 
 BASELINE, CANDIDATE = HEADLINE  # the pair the report compares (baseline over candidate: DVS, gradient)
@@ -69,8 +69,8 @@ def ratio_text(row: dict) -> str:
         return "-"
     limited = [EMULATORS[e].label for e in HEADLINE if row.get(f"{e}_bus_limited")]
     if limited:
-        return (f"not measurable: the readout limits {' and '.join(limited)} (its bus delivers at most what it "
-                "carries: flicker cannot add events to a full bus)")
+        return (f"not measurable on the bus: it limits {' and '.join(limited)} (flicker cannot add events to a "
+                f"full bus){pixel_level_text(row)}")
     if math.isfinite(iv.low) and math.isfinite(iv.high):
         return iv.format()
     bound = row.get("flicker_rejection_ratio_at_least")

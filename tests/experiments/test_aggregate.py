@@ -130,5 +130,43 @@ def test_bus_limited_streams_get_no_ratio():
            "flicker_rejection_ratio_high": float("nan"), "dvs_bus_limited": False, "gradient_bus_limited": True,
            "gradient_flicker_per_pixel_s": 0.01, "gradient_flicker_per_pixel_s_low": -0.02,
            "gradient_flicker_per_pixel_s_high": 0.04}
-    assert ratio_text(row).startswith("not measurable: the readout limits gradient")
+    assert ratio_text(row) == "not measurable on the bus: it limits gradient (flicker cannot add events to a full bus)"
     assert flicker_cell(row, "gradient").startswith("bus-limited: not distinguishable from zero")
+    # Where the records kept what the pixels made, the answer gives the pixels' own rates and ratio (issue 35).
+    row.update({"dvs_pixel_flicker_per_pixel_s": 400.0, "dvs_pixel_flicker_per_pixel_s_low": 390.0,
+                "dvs_pixel_flicker_per_pixel_s_high": 410.0, "gradient_pixel_flicker_per_pixel_s": 20.0,
+                "gradient_pixel_flicker_per_pixel_s_low": 15.0, "gradient_pixel_flicker_per_pixel_s_high": 25.0,
+                "pixel_flicker_rejection_ratio": 20.0, "pixel_flicker_rejection_ratio_low": 16.0,
+                "pixel_flicker_rejection_ratio_high": 26.0})
+    text = ratio_text(row)
+    assert "at the pixels, before the bus, DVS 400 [390, 410] and gradient 20 [15, 25]" in text
+    assert text.endswith("a ratio of 20 [16, 26]")
+
+
+def test_pixel_level_rates_come_from_what_the_pixels_made():
+    """The aggregate's pixel-level keys are the paired differences of the readout's requests (made), whatever the
+    bus delivered (counts)."""
+    from gevsim.experiments.aggregate import aggregate_run
+
+    def record(k):
+        made = {"run": {"events": 1000 + k, "gradient_events": 110 + k},
+                "no_flicker": {"events": 200, "gradient_events": 100}, "ideal": {"events": 100, "gradient_events": 40},
+                "render_floor": {"events": 100, "gradient_events": 40}}
+        counts = {v: {s: min(n, 150) for s, n in c.items()} for v, c in made.items()}  # a 150-event bus
+        return {"id": "x", "params": {}, "seed": k, "pixels": 10, "duration_s": 0.1, "steps": 5,
+                "flicker_frequency_hz": None, "periods_s": {}, "counts": counts, "made": made,
+                "bus_limited": {"run": ["events"], "no_flicker": ["events"]},
+                "event_probability": {"dvs": 0.1, "gradient": 0.1}, "metrics": {}, "seconds": 1.0, "gevsim": "x",
+                "render": {"spp_min": 1, "spp_max": 1, "se_ln": 0.01, "percentile": 99, "target_ln": 0.02,
+                           "reached": True}}
+
+    arrays = [{"mean_current_a": np.ones((2, 5)), "chip_lux": np.ones((2, 5)), "dominant_group": np.zeros((2, 5)),
+               "group_names": np.array(["lamp"]), "pixels/run/dvs": np.zeros((2, 5)),
+               "pixels/no_flicker/dvs": np.zeros((2, 5)), "pixels/run/gradient": np.zeros((2, 5)),
+               "pixels/no_flicker/gradient": np.zeros((2, 5))} for _ in range(3)]
+    row, _ = aggregate_run([record(k) for k in range(3)], arrays, ["dvs", "gradient"], [], "lamp")
+    assert row["dvs_pixel_flicker_per_pixel_s"] == pytest.approx((801) / (10 * 0.1))  # (1000 + k - 200), k = 0..2
+    assert row["gradient_pixel_flicker_per_pixel_s"] == pytest.approx(11 / (10 * 0.1))
+    assert row["dvs_pixel_noise_per_pixel_s"] == pytest.approx(100 / (10 * 0.1))
+    assert row["pixel_flicker_rejection_ratio"] == pytest.approx(801 / 11)
+    assert row["dvs_flicker_per_pixel_s"] == pytest.approx(0.0)  # the bus: 150 - 150
