@@ -125,6 +125,9 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
     if baseline in pixel_flicker and candidate in pixel_flicker:  # the same ratio at the pixels: no bus
         ratio = ratio_interval(pixel_flicker[baseline], pixel_flicker[candidate], confidence=CONFIDENCE)
         _put(row, "pixel_flicker_rejection_ratio", ratio)
+        row["pixel_flicker_rejection_ratio_method"] = ratio.method
+        row["pixel_flicker_rejection_ratio_at_least"] = ratio_lower_bound(row, len(records), pixels * duration,
+                                                                          level="pixel_")
     regions = map_regions(maps["dominant_group"], maps["chip_lux"])
     for e in emulators:
         row.update({f"{e}_flicker_{name}_share": share for name, share
@@ -154,19 +157,20 @@ def _pixel_level(row: dict, records: list[dict], emulator: str, scale: float) ->
     return (run - nf) * scale
 
 
-def ratio_lower_bound(row: dict, repeats: int, pixel_seconds: float) -> float | None:
+def ratio_lower_bound(row: dict, repeats: int, pixel_seconds: float, *, level: str = "") -> float | None:
     """A one-sided lower bound on DVS / gradient flicker-induced rates where Fieller's set is unbounded
     because the gradient rate is not distinguishable from zero: the DVS interval's low end over the
     larger of the gradient interval's high end and the rule-of-three bound for zero events (3 events
     over all repeats' pixel-seconds: Poisson 95 % upper limit of a zero count). None where the DVS
-    interval holds zero or Fieller's interval is bounded."""
-    if row["flicker_rejection_ratio_method"] != "fieller (unbounded)":
+    interval holds zero or Fieller's interval is bounded. ``level``: "" (what the bus delivered) or "pixel_"
+    (what the pixels made)."""
+    if row.get(f"{level}flicker_rejection_ratio_method") != "fieller (unbounded)":
         return None
     baseline, candidate = HEADLINE
-    low = row[f"{baseline}_flicker_per_pixel_s_low"]
+    low = row[f"{baseline}_{level}flicker_per_pixel_s_low"]
     if not low > 0:
         return None
-    return float(low / max(row[f"{candidate}_flicker_per_pixel_s_high"], 3.0 / (repeats * pixel_seconds)))
+    return float(low / max(row[f"{candidate}_{level}flicker_per_pixel_s_high"], 3.0 / (repeats * pixel_seconds)))
 
 
 def map_regions(dominant: np.ndarray, chip_lux: np.ndarray) -> dict[str, np.ndarray]:
@@ -215,8 +219,10 @@ def pixel_level_text(row: dict) -> str:
     ratio = interval_of(row, "pixel_flicker_rejection_ratio")
     if rates[0] is None or rates[1] is None or ratio is None:
         return ""
-    bounded = np.isfinite(ratio.low) and np.isfinite(ratio.high)
+    bound = row.get("pixel_flicker_rejection_ratio_at_least")
+    text = (ratio.format() if np.isfinite(ratio.low) and np.isfinite(ratio.high) else
+            f"at least {bound:.3g} (one-sided: the {EMULATORS[candidate].label} rate is not distinguishable from "
+            "zero)" if bound else "not determined (Fieller's set is unbounded)")
     return (f"; at the pixels, before the bus, {EMULATORS[baseline].label} {rates[0].format()} and "
-            f"{EMULATORS[candidate].label} {rates[1].format()} flicker-induced ev/px/s, a ratio of "
-            + (ratio.format() if bounded else "not determined (Fieller's set is unbounded)"))
+            f"{EMULATORS[candidate].label} {rates[1].format()} flicker-induced ev/px/s, a ratio of {text}")
 

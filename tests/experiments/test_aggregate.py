@@ -141,6 +141,10 @@ def test_bus_limited_streams_get_no_ratio():
     text = ratio_text(row)
     assert "at the pixels, before the bus, DVS 400 [390, 410] and gradient 20 [15, 25]" in text
     assert text.endswith("a ratio of 20 [16, 26]")
+    row.update({"pixel_flicker_rejection_ratio_low": float("nan"), "pixel_flicker_rejection_ratio_high": float("nan"),
+                "pixel_flicker_rejection_ratio_at_least": 15.6})
+    assert ratio_text(row).endswith("a ratio of at least 15.6 (one-sided: the gradient rate is not distinguishable "
+                                    "from zero)")
 
 
 def test_pixel_level_rates_come_from_what_the_pixels_made():
