@@ -20,10 +20,12 @@ same numbers.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -142,7 +144,8 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     for name, kw in VARIANTS.items():
         use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" \
             else setup
-        info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
+        with _quiet_readout():  # the report says which runs the bus limited: not 4 warnings per repeat
+            info = run(cfg, folder / f"{name}.h5", setup=use, **kw)
         counts[name] = dict(info.counts)
         made[name] = {stream: int(c["requested"]) for stream, c in info.readout.items()}
         saturated[name] = bus_limited(info.readout)
@@ -237,6 +240,20 @@ def event_strip(run_file: Path, out: Path, period_s: float | None, duration_s: f
 #: waiting at the end): then its counts say what the bus delivered, not what the pixels made. (Short waits
 #: change no counts: synchronous flicker bursts wait a while even where the mean rate fits the bus.)
 BUS_LIMITED_SHARE = 0.01
+
+
+@contextlib.contextmanager
+def _quiet_readout() -> Iterator[None]:
+    """The readout's per-run log lines held back (to ERROR) for the block, then restored."""
+    import logging
+
+    logger = logging.getLogger("gevsim.events.readout")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def bus_limited(readout: dict[str, dict]) -> list[str]:
