@@ -68,7 +68,7 @@ EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s"
 #: the DVS levels drawn from their stationary law, 10 ms settles the rest; docs/start-state.md measures it).
 BURN_IN_S = 0.01
 #: ``scene``: the emulated pixels span the scene's field of view; ``chip``: a centred window of the chip at its
-#: native pitch (:mod:`gevsim.emulation.footprint`, which checks it names these).
+#: native pitch (:mod:`gevsim.emulation.footprint`).
 FOOTPRINTS = ("scene", "chip")
 #: The longest burn-in a config may ask for.
 MAX_BURN_IN_S = 10.0
@@ -197,7 +197,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         **flags,
         aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
         burn_in_s=float(r.number(em, "burn_in_s", "emulation", BURN_IN_S, minimum=0.0, maximum=MAX_BURN_IN_S)),
-        footprint=_footprint(em, r),
+        footprint=check_footprint(em, r, "emulation"),
         render=dict(render),
         **emulator_params,
         sensor_overrides=dict(r.table(raw, "sensor")),
@@ -209,11 +209,11 @@ def load_config(path: str | Path) -> EmulationConfig:
     )
 
 
-def _footprint(em: dict, r: TomlReader) -> str:
-    """``emulation.footprint``: one of :data:`FOOTPRINTS`."""
-    value = em.get("footprint", "scene")
+def check_footprint(table: dict, r: TomlReader, where: str) -> str:
+    """``<where>.footprint`` (emulation or study config): one of :data:`FOOTPRINTS`, "scene" when absent."""
+    value = table.get("footprint", "scene")
     if value not in FOOTPRINTS:
-        r.fail("emulation.footprint", f"expected one of {', '.join(repr(f) for f in FOOTPRINTS)}, got {value!r}")
+        r.fail(f"{where}.footprint", f"expected one of {', '.join(repr(f) for f in FOOTPRINTS)}, got {value!r}")
     return str(value)
 
 

@@ -19,7 +19,6 @@ import math
 import numpy as np
 
 from gevsim import _portable as pm
-from gevsim.emulation.config import FOOTPRINTS  # noqa: F401 (the names a config may give)
 from gevsim.errors import ConfigError
 from gevsim.pixel.presets import SensorPreset
 from gevsim.render import SceneManifest

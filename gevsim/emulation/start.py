@@ -15,6 +15,7 @@ own events.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -105,6 +106,15 @@ def burn_in_span_s(burn_in_s: float, period_s: float | None) -> float:
     return float(burn_in_s)
 
 
+def start_levels(pr: Photoreceptor, emulators: Iterable) -> None:
+    """Draw each DVS level of ``emulators`` (those with ``start_from_noise``) from its stationary law given the
+    noise of the settled ``pr`` (:meth:`~gevsim.events.BrightnessEmulator.start_from_noise`)."""
+    for em in emulators:
+        law = pr.output_noise_law(em.params.refractory_s) if hasattr(em, "start_from_noise") else None
+        if law is not None:
+            em.start_from_noise(*law, signal_ln=pr.settled_ln)
+
+
 def burn_in(pr: Photoreceptor, emulators: dict, setup: Setup, *, span_s: float, step_s: float, sub: int,
             chunk_steps: int, grid_waveforms: tuple, periodic: bool) -> None:
     """Run ``pr`` (created with ``t0_s = -span_s`` and settled) and the ``emulators`` over (-span_s, 0] on the
@@ -115,10 +125,7 @@ def burn_in(pr: Photoreceptor, emulators: dict, setup: Setup, *, span_s: float, 
     else held at the first step's) with the poses of t = 0. Each emulator that decodes from a start state
     has it set at t = 0 (``mark_start``). The steps are split at ``grid_waveforms``' jumps (the flicker
     run's lamps: its counterfactuals step, and draw their noise, alike)."""
-    for em in emulators.values():
-        law = pr.output_noise_law(em.params.refractory_s) if hasattr(em, "start_from_noise") else None
-        if law is not None:
-            em.start_from_noise(*law, signal_ln=pr.settled_ln)
+    start_levels(pr, emulators.values())
     n_steps = max(1, math.ceil(span_s / step_s - 1e-9))
     grid = span_s / n_steps * np.arange(1, n_steps + 1)  # (0, span]: the burn-in shifted by +span
     first = held_photocurrent(setup, 0.0, grid[:1])  # the held light when not periodic

@@ -115,10 +115,8 @@ class BrightnessEmulator:
         uniform = np.random.default_rng(self.start_seed).random(n)
         u = np.empty(n)
         draw_levels(self.threshold_on_ln, self.threshold_off_ln, np.asarray(sigma_ln, float).reshape(-1),
-                          np.asarray(crossings_hz, float).reshape(-1), np.asarray(correlation, float).reshape(-1),
-                          drift, float(self.params.reset_noise_ln),
-                          uniform, u)
-        self.leak_phase = -u / self.threshold_on_ln
+                    np.asarray(crossings_hz, float).reshape(-1), np.asarray(correlation, float).reshape(-1),
+                    drift, float(self.params.reset_noise_ln), uniform, u)
         self.start_ref = np.asarray(signal_ln, float).reshape(-1) + u
 
     def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:

@@ -68,7 +68,7 @@ from pathlib import Path
 from gevsim import __version__
 from gevsim._validate import FieldError
 from gevsim.config import TomlReader, load_table, resolve_relative
-from gevsim.emulation.config import FOOTPRINTS, MAX_LIGHT_SCALE, EmulationConfig
+from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig, check_footprint
 from gevsim.emulation.emulators import EMULATORS, PARAMS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
@@ -223,10 +223,7 @@ def _base(st: dict, emulators: tuple[str, ...], r: TomlReader, folder: Path) -> 
     if not isinstance(base["sensor"], str):
         r.fail("study.sensor", f"expected a sensor preset name or .toml path, got {base['sensor']!r}")
     if "footprint" in st:  # only when given: the runs of studies without it keep their ids
-        if st["footprint"] not in FOOTPRINTS:
-            r.fail("study.footprint", f"expected one of {', '.join(repr(f) for f in FOOTPRINTS)}, "
-                                      f"got {st['footprint']!r}")
-        base["footprint"] = st["footprint"]
+        base["footprint"] = check_footprint(st, r, "study")
     return base
 
 

@@ -79,12 +79,11 @@ def start_running(pr: Photoreceptor, dvs: BrightnessEmulator, light: np.ndarray,
     of ``light``) of the chain on that light, its events discarded. Returns the time the burn-in ended,
     after which the bench's own steps follow."""
     from gevsim.emulation.config import BURN_IN_S
+    from gevsim.emulation.start import start_levels
 
     period = len(light)
     pr.settle(light, np.full(period, step_s))
-    law = pr.output_noise_law(dvs.params.refractory_s)
-    if law is not None:
-        dvs.start_from_noise(*law, signal_ln=pr.settled_ln)
+    start_levels(pr, [dvs])
     span = BURN_IN_S if burn_in_s is None else float(burn_in_s)
     n = int(math.ceil(span / (period * step_s) - 1e-9)) * period
     if n:
