@@ -10,7 +10,7 @@ responsivity for ``bandwidth_reference_spectrum``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +18,10 @@ from gevsim._validate import real
 from gevsim.config import FieldError, FromTable, load_table, resource_tomls
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.pixel.aps import ApsParams
+from gevsim.pixel.assumed import ASSUMED_TABLES, SENSOR_FIELDS, Assumed, parse_assumed
 from gevsim.pixel.params import EventParams, NoiseParams, PhotoreceptorParams, ReadoutParams
 
-TABLES = ("sensor", "photoreceptor", "noise", "events", "aps", "readout", "stated")
+TABLES = ("sensor", "photoreceptor", "noise", "events", "aps", "readout", "stated", "assumed")
 SENSOR_KEYS = ("name", "description", "width", "height", "pixel_pitch_m", "fill_factor",
                "bandwidth_reference_spectrum", "quantum_efficiency")
 #: The least dark current of a preset's median pixel, in electrons per second (1.6e-19 A). Far below it,
@@ -87,6 +88,11 @@ class SensorPreset:
     readout: ReadoutParams = ReadoutParams()  # no limit unless the preset's [readout] says
     quantum_efficiency: str = "fsi"  # a name in gevsim.optics.QE_CURVES
     stated: StatedBehaviour = StatedBehaviour()  # nothing stated unless the preset's [stated] says
+    bandwidth_reference_spectrum: str = "D65"  # the light cutoff_ref_lux is stated for
+    cutoff_ref_lux: float | None = None  # the chip lux at which cutoff_hz holds, as the file states it (None: in A)
+    #: The plausible range of each assumed number, by "table.field" (the preset's [assumed.*] tables;
+    #: gevsim.pixel.assumed). Metadata: not compared, so presets hash as before.
+    assumed: dict[str, Assumed] = field(default_factory=dict, compare=False)
 
     @property
     def qe(self) -> tuple:
@@ -113,41 +119,121 @@ class SensorPreset:
         )
 
 
+#: The tables a qualified override (``"noise.dc_offset_v"``) may name; an unqualified name goes to the first of
+#: ``OWNERS`` with that field (or to the sensor's ``pixel_pitch_m``, ``fill_factor``).
+QUALIFIED_TABLES = ASSUMED_TABLES
+OWNERS = ("photoreceptor", "noise", "events", "readout")
+
+
 def with_overrides(preset: SensorPreset, overrides: dict, *, source: str | None = None,
                    where: str = "") -> SensorPreset:
     """A copy with parameters replaced by name, wherever they live: the sensor geometry
     (``pixel_pitch_m``, ``fill_factor``) or a field of ``photoreceptor``, ``noise``,
-    ``events`` (e.g. ``cutoff_hz``, ``dark_current_a``, ``threshold_mismatch_ln``).
+    ``events``, ``readout`` (e.g. ``cutoff_hz``, ``dark_current_a``, ``threshold_mismatch_ln``), the first
+    of them with that field; or by qualified name ``table.field`` (``"noise.prnu"``, ``"aps.prnu"``,
+    ``"sensor.quantum_efficiency"``), as :attr:`SensorPreset.assumed` names them.
+
+    ``photoreceptor.cutoff_ref_lux`` and ``sensor.bandwidth_reference_spectrum`` convert the cutoff's reference
+    again, as loading the file would (with the preset's own geometry and QE); a changed pitch, fill factor or
+    QE keeps the reference photocurrent (a property of the circuit).
     Errors name ``source`` and the key, inside the table ``where`` (``sensor`` in an emulation config)."""
     import dataclasses
 
     prefix = f"{where}." if where else ""
-
     parts: dict[str, Any] = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events,
-                             "readout": preset.readout}
+                             "readout": preset.readout, "aps": preset.aps}
     top: dict[str, Any] = {}
+    touched: set[str] = set()
     for key, value in overrides.items():
-        if key in ("pixel_pitch_m", "fill_factor"):
-            upper = 1e-3 if key == "pixel_pitch_m" else 1.0
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= upper:
-                raise ConfigError(f"expected a number in (0, {upper}], got {value!r}", source=source,
-                                  key=prefix + key)
-            top[key] = float(value)
+        table, name = _owner(key, parts, source=source, key_name=prefix + key)
+        touched.add(name)
+        if table == "sensor" or name == "cutoff_ref_lux":
+            top[name] = _sensor_value(name, value, source=source, key=prefix + key)
             continue
-        owner = next((name for name, obj in parts.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
-        if owner is None:
-            names = ["pixel_pitch_m", "fill_factor"] + [f.name for obj in parts.values()
-                                                        for f in dataclasses.fields(obj)]
-            raise ConfigError(f"no sensor parameter {key!r}{suggest(key, names)}", source=source, key=prefix + key)
         try:
-            parts[owner] = dataclasses.replace(parts[owner], **{key: value})
+            parts[table] = dataclasses.replace(parts[table], **{name: value})
         except ValueError as exc:
             raise ConfigError(str(exc), source=source, key=prefix + key) from None
-    changed = next((k for k in ("dark_current_a", "dark_current_spread", "temperature_k", "dark_current_doubling_k")
-                    if k in overrides), None)  # the keys the dark-current floor depends on
-    if changed is not None:
+    if {"cutoff_ref_lux", "bandwidth_reference_spectrum"} & set(top):
+        key = next(k for k in overrides if k.endswith(("cutoff_ref_lux", "bandwidth_reference_spectrum")))
+        if "cutoff_ref_photocurrent_a" in touched:
+            raise ConfigError("give cutoff_ref_lux or cutoff_ref_photocurrent_a, not both", source=source,
+                              key=prefix + key)
+        lux = top.get("cutoff_ref_lux", preset.cutoff_ref_lux)
+        if lux is not None:
+            from gevsim.optics import QE_CURVES
+
+            current = lux_to_photocurrent_a(
+                lux, pixel_pitch_m=preset.pixel_pitch_m, fill_factor=preset.fill_factor,
+                spectrum=top.get("bandwidth_reference_spectrum", preset.bandwidth_reference_spectrum),
+                source=source, qe=QE_CURVES[preset.quantum_efficiency])
+            parts["photoreceptor"] = dataclasses.replace(parts["photoreceptor"], cutoff_ref_photocurrent_a=current)
+    changed = next((k for k in overrides if k.rpartition(".")[2] in
+                    ("dark_current_a", "dark_current_spread", "temperature_k", "dark_current_doubling_k")), None)
+    if changed is not None:  # the keys the dark-current floor depends on
         check_dark_current(parts["photoreceptor"], parts["noise"], source=source, key=prefix + changed)
     return dataclasses.replace(preset, **parts, **top)
+
+
+def parameter_value(preset: SensorPreset, key: str) -> Any:
+    """The value of a parameter named as :func:`with_overrides` names it (``"noise.dc_offset_v"``,
+    ``"sensor.fill_factor"``, ``"photoreceptor.cutoff_ref_lux"``, or an unqualified field): what an
+    :class:`~gevsim.pixel.assumed.Assumed` ``value`` is compared with."""
+    parts = {"photoreceptor": preset.photoreceptor, "noise": preset.noise, "events": preset.events,
+             "readout": preset.readout, "aps": preset.aps}
+    table, name = _owner(key, parts, source=preset.source, key_name=key)
+    if table == "sensor" or name == "cutoff_ref_lux":
+        return getattr(preset, name)
+    return getattr(parts[table], name)
+
+
+def _owner(key: str, parts: dict[str, Any], *, source: str | None, key_name: str) -> tuple[str, str]:
+    """(table, field) of an override's key: ``table.field``, or a bare field of the sensor or of the first of
+    ``OWNERS`` that has it."""
+    import dataclasses
+
+    def fields(table: str) -> list[str]:
+        obj = parts[table]
+        return [] if obj is None else [f.name for f in dataclasses.fields(obj)]
+
+    if "." not in key:
+        if key in ("pixel_pitch_m", "fill_factor"):
+            return "sensor", key
+        owner = next((table for table in OWNERS if key in fields(table)), None)
+        if owner is None:
+            names = ["pixel_pitch_m", "fill_factor"] + [name for table in OWNERS for name in fields(table)]
+            raise ConfigError(f"no sensor parameter {key!r}{suggest(key, names)}", source=source, key=key_name)
+        return owner, key
+    table, _, name = key.partition(".")
+    if table not in QUALIFIED_TABLES:
+        raise ConfigError(f"no preset table {table!r}{suggest(table, QUALIFIED_TABLES)}; qualified names are "
+                          f"table.field with table one of {', '.join(QUALIFIED_TABLES)}", source=source, key=key_name)
+    if table == "aps" and parts["aps"] is None:
+        raise ConfigError("this preset has no [aps] (no frame sensor) to override", source=source, key=key_name)
+    names = list(SENSOR_FIELDS) if table == "sensor" else fields(table) + (["cutoff_ref_lux"] if table ==
+                                                                          "photoreceptor" else [])
+    if name not in names:
+        raise ConfigError(f"no parameter {name!r} in [{table}]{suggest(name, names)}", source=source, key=key_name)
+    return table, name
+
+
+def _sensor_value(name: str, value: Any, *, source: str | None, key: str) -> Any:
+    """A checked value of a sensor-level override (geometry, QE curve, the cutoff's reference light)."""
+    if name in ("pixel_pitch_m", "fill_factor", "cutoff_ref_lux"):
+        upper = {"pixel_pitch_m": 1e-3, "fill_factor": 1.0, "cutoff_ref_lux": MAX_CUTOFF_REF_LUX}[name]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= upper:
+            raise ConfigError(f"expected a number in (0, {upper}], got {value!r}", source=source, key=key)
+        return float(value)
+    if name == "quantum_efficiency":
+        from gevsim.optics import QE_CURVES
+
+        if not isinstance(value, str) or value not in QE_CURVES:
+            raise ConfigError(f"unknown quantum_efficiency {value!r}{suggest(str(value), QE_CURVES)}; choose from "
+                              f"{', '.join(QE_CURVES)}", source=source, key=key)
+        return value
+    if not isinstance(value, str):
+        raise ConfigError(f"expected a lamp spectrum name such as 'D65', got {value!r}", source=source, key=key)
+    return value
 
 
 def check_dark_current(photoreceptor: PhotoreceptorParams, noise: NoiseParams, *, source: str | None,
@@ -231,7 +317,8 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
     if not isinstance(spectrum, str):
         r.fail("sensor.bandwidth_reference_spectrum", f"expected a lamp spectrum name such as 'D65', got {spectrum!r}")
     receptor = dict(raw["photoreceptor"])
-    if "cutoff_ref_lux" in receptor:
+    lux = receptor.get("cutoff_ref_lux")
+    if lux is not None:
         lux = receptor.pop("cutoff_ref_lux")
         if "cutoff_ref_photocurrent_a" in receptor:
             raise ConfigError("give cutoff_ref_lux or cutoff_ref_photocurrent_a, not both", source=src,
@@ -260,6 +347,9 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
         readout=ReadoutParams.from_table(raw.get("readout", {}), source=src),
         quantum_efficiency=qe_name,
         stated=StatedBehaviour.from_table(raw.get("stated", {}), source=src),
+        bandwidth_reference_spectrum=spectrum,
+        cutoff_ref_lux=None if lux is None else float(lux),
+        assumed=parse_assumed(raw.get("assumed"), raw, source=src),
     )
 
 
