@@ -82,6 +82,7 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
                 "render_target_reached": q["reached"]})
     maps = {k: arrays[0][k] for k in ("mean_current_a", "chip_lux", "dominant_group")}
     row["chip_lux_median"] = float(np.median(maps["chip_lux"]))
+    row["bus_cap_per_pixel_s"] = first.get("bus_cap_per_pixel_s")
     row["group_names"] = [str(g) for g in arrays[0]["group_names"]]
     flicker, pixel_flicker = {}, {}
     for e in emulators:
@@ -90,7 +91,7 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
         def per_repeat(variant, records=records, stream=stream):
             return np.array([r["counts"][variant][stream] for r in records], float)
 
-        run, nf, ideal, floor = (per_repeat(v) for v in ("run", "no_flicker", "ideal", "render_floor"))
+        run, nf, ideal = (per_repeat(v) for v in ("run", "no_flicker", "ideal"))
         row[f"{e}_events_per_s"] = float(run.mean() / duration)
         row[f"{e}_event_probability"] = float(np.mean([r["event_probability"][e] for r in records]))
         row[f"{e}_bus_limited"] = any(stream in r.get("bus_limited", {}).get(v, []) for r in records
@@ -100,7 +101,9 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
             pixel_flicker[e] = _pixel_level(row, records, e, scale)
         _put(row, f"{e}_flicker_per_pixel_s", mean_interval(flicker[e], confidence=CONFIDENCE))
         _put(row, f"{e}_noise_per_pixel_s", mean_interval((nf - ideal) * scale, confidence=CONFIDENCE))
-        _put(row, f"{e}_render_floor_per_pixel_s", mean_interval((floor - ideal) * scale, confidence=CONFIDENCE))
+        if "render_floor" in first["counts"]:  # not in a sensitivity run's repeats
+            floor = per_repeat("render_floor")
+            _put(row, f"{e}_render_floor_per_pixel_s", mean_interval((floor - ideal) * scale, confidence=CONFIDENCE))
         row[f"{e}_scene_per_pixel_s"] = float(ideal.mean() * scale)
         if flicker_group in first["periods_s"]:
             for variant, key in (("run", "phase_locked"), ("no_flicker", "phase_locked_control")):
@@ -133,7 +136,7 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
         row.update({f"{e}_flicker_{name}_share": share for name, share
                     in region_shares(maps[f"{e}_flicker_per_pixel_s"], regions).items()})
     row.update({f"{name}_area_share": float(mask.mean()) for name, mask in regions.items()})
-    for method in methods:
+    for method in (m for m in methods if all(m in r["metrics"] for r in records)):
         for k in ("mse", "ssim", "psnr"):
             values = np.array([r["metrics"][method][k] for r in records], float)
             if np.all(np.isfinite(values)):
@@ -154,6 +157,7 @@ def _pixel_level(row: dict, records: list[dict], emulator: str, scale: float) ->
     run, nf, ideal = (np.array([r["made"][v][stream] for r in records], float) for v in ("run", "no_flicker", "ideal"))
     _put(row, f"{emulator}_pixel_flicker_per_pixel_s", mean_interval((run - nf) * scale, confidence=CONFIDENCE))
     _put(row, f"{emulator}_pixel_noise_per_pixel_s", mean_interval((nf - ideal) * scale, confidence=CONFIDENCE))
+    row[f"{emulator}_pixel_events_per_pixel_s"] = float(run.mean() * scale)  # all the pixels made, per pixel
     return (run - nf) * scale
 
 

@@ -36,6 +36,7 @@ from gevsim._portable import weighted_sum
 from gevsim.emulation.emulators import EMULATORS, HEADLINE
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments.study import Study, flicker_group, run_config, run_id
+from gevsim.experiments.variations import LIGHT_VARIANTS
 from gevsim.io import atomic_path, atomic_write_text
 from gevsim.metrics.attribution import PHASE_BINS, phase_histogram
 
@@ -141,7 +142,10 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     made: dict[str, dict[str, int]] = {}  # what the pixels made (the readout's requests), before the bus
     saturated: dict[str, list[str]] = {}
     folded: dict[str, dict[str, dict]] = {}
+    light = "assumed" in params  # a sensitivity run: rates only (gevsim.experiments.variations)
     for name, kw in VARIANTS.items():
+        if light and name not in LIGHT_VARIANTS:
+            continue
         use = render_noise_floor(setup, frequency_hz=frequency or DEFAULT_FLOOR_HZ) if name == "render_floor" \
             else setup
         with _quiet_readout():  # the report says which runs the bus limited: not 4 warnings per repeat
@@ -151,7 +155,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
         saturated[name] = bus_limited(info.readout)
         if name == "run":
             stats, summary = summarize(folder / "run.h5"), info
-            if repeat == 0:
+            if repeat == 0 and not light:
                 record_strip = event_strip(folder / "run.h5", Path(out) / "runs" / rid / STRIP_FILE,
                                            periods.get(group), summary.duration_s)
         if name in FOLDED:
@@ -163,10 +167,12 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
               "bus_limited": saturated,
               "event_probability": {e: stats[EMULATORS[e].stream].event_probability
                                     for e in study.base["emulators"]},
-              "render": _render_quality(setup.render_quality), "metrics": {}}
-    if repeat == 0:
+              "render": _render_quality(setup.render_quality), "metrics": {},
+              "bus_cap_per_pixel_s": _bus_cap(info.readout, h * w)}
+    if repeat == 0 and not light:
         record["strip"] = record_strip
-    record["metrics"] = _scores(folder / "run.h5", study.base["methods"], aps=cfg.aps)
+    if not light:
+        record["metrics"] = _scores(folder / "run.h5", study.base["methods"], aps=cfg.aps)
     baseline = HEADLINE[0]  # the spectrum of the stream the report compares against
     if baseline in study.base["emulators"] and repeat == 0:
         f, amp = event_spectrum(folded["run"][baseline]["rate"])
@@ -181,6 +187,12 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     if not keep_files:
         shutil.rmtree(folder, ignore_errors=True)
     return record
+
+
+def _bus_cap(readout: dict[str, dict], pixels: int) -> float | None:
+    """The bus's cap in events per pixel per second for the emulated window (None: no cap)."""
+    caps = [float(c["max_rate_eps"]) for c in readout.values() if "max_rate_eps" in c]
+    return min(caps) / pixels if caps and min(caps) < float("inf") else None
 
 
 def _scores(path: Path, methods: list[str], *, aps: bool) -> dict[str, dict[str, float]]:

@@ -11,16 +11,17 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 import gevsim
 from gevsim.emulation.emulators import EMULATORS, HEADLINE
-from gevsim.evaluation.methods import METHODS
 from gevsim.experiments import study_plots
-from gevsim.experiments.aggregate import agreement, interval_of, pixel_level_text, row_emulators, row_methods
+from gevsim.experiments.aggregate import agreement, interval_of, row_emulators
+from gevsim.experiments.answer import answer, headline_row, pixel_ratio
+from gevsim.experiments.report_tables import flicker_cell, fmt, key_table, ratio_text  # noqa: F401 (re-exported)
 from gevsim.experiments.study import Study, run_id
 
 BASELINE, CANDIDATE = HEADLINE  # the pair the report compares (baseline over candidate: DVS, gradient)
@@ -44,84 +45,8 @@ def write_table(folder: Path, rows: list[dict]) -> None:
     (folder / "results.json").write_text(json.dumps(rows, indent=1, default=float))
 
 
-def flicker_cell(row: dict, emulator: str, what: str = "flicker") -> str:
-    """An emulator's flicker- (or noise-) induced rate, marked where the readout limited the stream (the
-    difference of two runs then measures the bus, not the pixels)."""
-    text = fmt(row, f"{emulator}_{what}_per_pixel_s")
-    return f"bus-limited: {text}" if row.get(f"{emulator}_bus_limited") else text
-
-
-def fmt(row: dict, key: str, digits: int = 3) -> str:
-    """A row's value with its interval (or the bare value where it has none)."""
-    iv = interval_of(row, key)
-    if iv is not None and iv.low == iv.high == iv.estimate == 0.0:
-        return "0 (in every repeat)"
-    if iv is not None:
-        return iv.format(digits)
-    value = row.get(key)
-    return "-" if value is None else f"{value:.{digits}g}"
-
-
-def ratio_text(row: dict) -> str:
-    """The rejection ratio: Fieller's interval, or its one-sided bound where that set is unbounded."""
-    iv = interval_of(row, "flicker_rejection_ratio")
-    if iv is None:
-        return "-"
-    limited = [EMULATORS[e].label for e in HEADLINE if row.get(f"{e}_bus_limited")]
-    if limited:
-        return (f"not measurable on the bus: it limits {' and '.join(limited)} (flicker cannot add events to a "
-                f"full bus){pixel_level_text(row)}")
-    if math.isfinite(iv.low) and math.isfinite(iv.high):
-        return iv.format()
-    bound = row.get("flicker_rejection_ratio_at_least")
-    if bound:
-        ceiling = max(row[f"{CANDIDATE}_flicker_per_pixel_s_high"], 0.0)
-        return (f"at least {bound:.3g} (one-sided; the {CAND_LABEL} flicker-induced rate is not distinguishable "
-                f"from zero, at most {ceiling:.3g} ev/px/s)")
-    return f"not determined ({BASE_LABEL}/{CAND_LABEL} intervals hold zero: Fieller's set is unbounded)"
-
-
 def _label(row: dict, study: Study) -> str:
     return ", ".join(f"{a}={row.get(a)}" for a in study.axes)
-
-
-def answer(rows: list[dict], study: Study) -> list[str]:
-    """The report's opening answer, three sentences: which sensor rejects which flicker by how much,
-    and what it costs in noise events and reconstruction quality, with intervals."""
-    if "flicker_rejection_ratio" not in rows[0]:
-        return []
-    scenes = list(dict.fromkeys(r.get("scene", study.base["scene"]) for r in rows))
-    parts = []
-    for scene in scenes:
-        sel = [r for r in rows if r.get("scene", study.base["scene"]) == scene]
-        best = max(sel, key=lambda r: r[f"{BASELINE}_flicker_per_pixel_s_low"])  # the clearest flicker
-        lamp = best["flicker_group"] + (f" at {best['flicker_frequency_hz']:g} Hz" if best["flicker_frequency_hz"]
-                                        else " (steady)")
-        where = ", ".join(f"{a}={best.get(a)}" for a in study.axes if a != "scene")
-        parts.append(f"in {scene} ({lamp}; {where}) {BASE_LABEL} events carry "
-                     f"{fmt(best, f'{BASELINE}_flicker_per_pixel_s')} flicker-induced ev/px/s and {CAND_LABEL} "
-                     f"events {fmt(best, f'{CANDIDATE}_flicker_per_pixel_s')}, a rejection ratio of {ratio_text(best)}")
-    first = (f"{CAND_LABEL[:1].upper()}{CAND_LABEL[1:]} events against {BASE_LABEL}, 95 % intervals over repeated "
-             "noise seeds: " + "; ".join(parts) + ".")
-    noise = {e: float(np.median([r[f"{e}_noise_per_pixel_s"] for r in rows])) for e in HEADLINE}
-    worst = max(rows, key=lambda r: r[f"{CANDIDATE}_noise_per_pixel_s"])
-    second = (f"The cost in noise: the median noise-induced rate is {noise[CANDIDATE]:.3g} ev/px/s for {CAND_LABEL} "
-              f"events against {noise[BASELINE]:.3g} for {BASE_LABEL}, up to "
-              f"{fmt(worst, f'{CANDIDATE}_noise_per_pixel_s')} ({_label(worst, study)}).")
-    third = ""
-    methods = row_methods(rows, scored=True)
-    by_stream: dict[str, list[str]] = {}
-    for m in methods:
-        by_stream.setdefault(EMULATORS[METHODS[m].emulator].kind, []).append(m)
-    if len(by_stream) == 2:
-        texts = []
-        for stream, ms in by_stream.items():
-            best_m = max(ms, key=lambda m: np.nanmean([r[f"{m}_ssim"] for r in rows]))
-            mean = float(np.nanmean([r[f"{best_m}_ssim"] for r in rows]))
-            texts.append(f"{stream} events {mean:.3f} ({best_m})")
-        third = ("In reconstruction quality (SSIM against the flicker-free scene, mean over runs) the best method "
-                 f"reaches {' and '.join(texts)}; per-run intervals are in the table below.")
-    return [first, second] + ([third] if third else [])
 
 
 def findings(rows: list[dict], study: Study) -> list[str]:
@@ -129,12 +54,18 @@ def findings(rows: list[dict], study: Study) -> list[str]:
     out = []
     emulators = row_emulators(rows)
     for row in rows:
-        cells = [f"{EMULATORS[e].label} {fmt(row, f'{e}_flicker_per_pixel_s')}" for e in emulators]
-        out.append(f"{_label(row, study)}: flicker-induced ev/px/s " + ", ".join(cells)
-                   + f"; rejection ratio {ratio_text(row)}.")
+        level = "pixel_" if f"{CANDIDATE}_pixel_flicker_per_pixel_s" in row else ""
+        cells = [f"{EMULATORS[e].label} {fmt(row, f'{e}_{level}flicker_per_pixel_s')}" for e in emulators
+                 if f"{e}_{level}flicker_per_pixel_s" in row]
+        capped = [EMULATORS[e].label for e in emulators if row.get(f"{e}_bus_limited")]
+        bus = (f"; at the bus cap ({row['bus_cap_per_pixel_s']:.3g} ev/px/s): {', '.join(capped)}"
+               if capped and row.get("bus_cap_per_pixel_s") else "")
+        out.append(f"{_label(row, study)}: flicker-induced ev/px/s {'at the pixels ' if level else ''}"
+                   + ", ".join(cells) + f"; ratio {pixel_ratio(row)[1]}{bus}.")
     disagreements = [f"{_label(r, study)}: {text}" for r in rows for e in emulators
-                     if (text := agreement(r, e))]
-    checked = sum(1 for r in rows for e in emulators if f"{e}_phase_locked_per_pixel_s" in r)
+                     if not r.get(f"{e}_bus_limited") and (text := agreement(r, e))]
+    checked = sum(1 for r in rows for e in emulators if f"{e}_phase_locked_per_pixel_s" in r
+                  and not r.get(f"{e}_bus_limited"))  # a full bus flattens the rate: no test of the lamp's lock
     if checked:
         if disagreements:
             out.append(f"**The two estimators disagree** in {len(disagreements)} of {checked} (run, stream) pairs "
@@ -225,44 +156,6 @@ def render_floor_findings(rows: list[dict]) -> list[str]:
     return out
 
 
-def key_table(rows: list[dict], study: Study) -> str:
-    """Markdown table: the sweep parameters and every headline figure with its 95 % interval."""
-    emulators = row_emulators(rows)
-    methods = row_methods(rows, scored=True)
-    head = (list(study.axes) + [f"{e} flicker ev/px/s" for e in emulators] + [f"{BASE_LABEL}/{CAND_LABEL} ratio"]
-            + [f"{e} lamp-locked RMS ev/px/s" for e in emulators if f"{e}_phase_locked_per_pixel_s" in rows[0]]
-            + [f"{e} noise ev/px/s" for e in HEADLINE if e in emulators]
-            + [f"{m} SSIM" for m in methods] + ["render spp", "render ln error"])
-    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
-    for row in rows:
-        cells = [str(row.get(a)) for a in study.axes]
-        cells += [flicker_cell(row, e) for e in emulators]
-        cells += [ratio_text(row)]
-        cells += [fmt(row, f"{e}_phase_locked_per_pixel_s") for e in emulators
-                  if f"{e}_phase_locked_per_pixel_s" in rows[0]]
-        cells += [flicker_cell(row, e, "noise") for e in HEADLINE if e in emulators]
-        cells += [fmt(row, f"{m}_ssim") for m in methods]
-        cells += [_render_spp(row), _render_error(row)]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def _render_spp(row: dict) -> str:
-    if "render_spp_min" not in row:
-        return "-"
-    lo, hi = row["render_spp_min"], row["render_spp_max"]
-    return str(lo) if lo == hi else f"{lo}-{hi}"
-
-
-def _render_error(row: dict) -> str:
-    if "render_se_ln" not in row:
-        return "-"
-    text = f"p{row['render_se_percentile']:g} {row['render_se_ln']:.3g}"
-    if row.get("render_target_ln") is not None:
-        text += f" (target {row['render_target_ln']:.3g}{'' if row['render_target_reached'] else ', NOT reached'})"
-    return text
-
-
 METHOD_TEXT = (
     "How the numbers are made. Each run is repeated with R noise seeds (seed, seed + 1, ...). Each repeat is "
     "emulated four times with the same seed (common random numbers): as is, with each lamp at its mean (no "
@@ -308,20 +201,31 @@ def event_strips(out: Path, study: Study, rows: list[dict]) -> list[tuple[str, s
 
 
 def write_report(folder: Path, study: Study, rows: list[dict], made: list, maps_made: list,
-                 strips: list | None = None) -> None:
+                 strips: list | None = None, around: dict | None = None) -> None:
+    """report.md: the answer, how far it moves with the assumed numbers and where gradient events win
+    (``around``: the answer's sentences and those sections' lines and figures), then the runs, figures, event
+    strips and maps."""
+    around = around or {}
     n_rep = rows[0]["repeats"]
     parts = [f"# Study: {study.name}", "", study.description, ""]
-    head = [m for m in made if m[0] == "headline.png"]
-    for name, caption in head:
-        parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
-    parts += ["## Answer", "", " ".join(answer(rows, study)), "",
-              f"gevsim {gevsim.__version__}; {len(rows)} runs x {n_rep} repeats; config in `config.toml`, every "
-              "number in `results.csv` / `results.json`, per-pixel maps in `maps.npz`.", "", "## Findings", ""]
+    figures = dict(around.get("figures", {}))
+    parts += ["## Answer", "", " ".join(around.get("answer", [])), "",
+              f"gevsim {gevsim.__version__}; {len(rows)} runs x {n_rep} repeats"
+              + (f" and {around['variations']} runs around the headline" if around.get("variations") else "")
+              + "; config in `config.toml`, every number in `results.csv` / `results.json` (runs around the "
+              "headline: `variations.json`), per-pixel maps in `maps.npz`.", ""]
+    for title, key in (("How far the answer moves with what was assumed", "sensitivity"),
+                       ("Where gradient events win", "tradeoff")):
+        if around.get(key):
+            parts += [f"## {title}", "", *around[key], ""]
+            if key in figures:
+                name, caption = figures[key]
+                parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    parts += ["## Runs", ""]
     parts += [f"- {s}" for s in findings(rows, study) + render_floor_findings(rows)]
-    parts += ["", METHOD_TEXT, ""]
+    parts += [""]
     for name, caption in made:
-        if name != "headline.png":
-            parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+        parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
     if strips:
         parts += ["## What the sensors see", ""]
         for name, caption in strips:
@@ -331,8 +235,30 @@ def write_report(folder: Path, study: Study, rows: list[dict], made: list, maps_
         parts += [f"- {s}" for s in map_findings(rows)] + [""]
         for name, caption in maps_made:
             parts += [f"![{caption}]({name})", "", f"*{caption}*", ""]
-    parts += ["## Runs", "", key_table(rows, study), ""]
+    parts += ["## Table", "", key_table(rows, study), "", METHOD_TEXT, ""]
     (folder / "report.md").write_text("\n".join(parts))
+
+
+def around_headline(folder: Path, study: Study, out: Path, rows: list[dict], plt: Any) -> dict:
+    """The answer and the sections about the runs around the headline (their rows into ``variations.json``)."""
+    from gevsim.experiments import variation_plots as vp
+    from gevsim.experiments import variation_report as vr
+    from gevsim.experiments.study_run import collect_variations
+    from gevsim.pixel import load_preset
+
+    head = headline_row(rows, study)
+    preset = load_preset(head.get("sensor", study.base["sensor"]))
+    around_rows = collect_variations(study, out)
+    (folder / "variations.json").write_text(json.dumps(around_rows, indent=1, default=float))
+    pts = vr.points([head] + [r for r in around_rows if r.get("variation") == "tradeoff"])
+    figures = {key: fig for key, fig in (("sensitivity", vp.tornado(folder, head, around_rows, plt)),
+                                         ("tradeoff", vp.tradeoff(folder, pts, head.get("bus_cap_per_pixel_s"), plt)))
+               if fig}
+    sentences = answer(rows, study, around_rows, preset.name.upper() if preset.name.startswith("davis") else
+                       preset.name)
+    return {"answer": sentences, "variations": len(around_rows), "figures": figures,
+            "sensitivity": vr.sensitivity_lines(head, around_rows, preset),
+            "tradeoff": vr.tradeoff_lines(pts, head.get("bus_cap_per_pixel_s"))}
 
 
 def write_maps(folder: Path, study: Study, out: Path, rows: list[dict]) -> dict[str, dict]:
@@ -366,7 +292,8 @@ def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path
                             study_plots.quality(stage, study, rows, plt), study_plots.spectrum(stage, study, rows, plt),
                             study_plots.pareto(stage, rows, plt)) if m]
         maps_made = [study_plots.flicker_maps(stage, study, row, maps[row["id"]], k, plt) for k, row in enumerate(rows)]
-        write_report(stage, study, rows, made, maps_made, event_strips(out, study, rows))
+        around = around_headline(stage, study, out, rows, plt)
+        write_report(stage, study, rows, made, maps_made, event_strips(out, study, rows), around)
         (stage / "config.toml").write_text(study.text)
         for old in out.glob("maps_*.png"):  # an earlier report's panels (the study may have fewer runs now)
             old.unlink()
@@ -377,23 +304,3 @@ def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path
     return out / "report.md"
 
 
-def comparison_table(rows: list[dict], study: Study) -> str:
-    """Per run and emulator: events/s, flicker-induced and noise-induced events per pixel per second
-    with 95 % intervals, and the best reconstruction's SSIM (the demo's table)."""
-    lines = []
-    for row in rows:
-        lines.append(f"\n{_label(row, study)} ({row['repeats']} repeats; {BASE_LABEL}/{CAND_LABEL} {ratio_text(row)})")
-        if "render_se_ln" in row:
-            lines.append(f"  render: {_render_spp(row)} spp, ln error {_render_error(row)}")
-        lines.append(f"  {'emulator':12s} {'events/s':>10s}  {'flicker ev/px/s [95 %]':52s} "
-                     f"{'noise ev/px/s [95 %]':52s} {'best recon':>12s} {'SSIM':>6s}")
-        for e in EMULATORS:
-            if f"{e}_events_per_s" not in row:
-                continue
-            scored = [m for m, entry in METHODS.items()
-                      if entry.emulator == e and f"{m}_ssim" in row and np.isfinite(row[f"{m}_ssim"])]
-            best = max(scored, key=lambda m: row[f"{m}_ssim"]) if scored else None
-            ssim = f"{row[f'{best}_ssim']:6.3f}" if best else f"{'-':>6s}"
-            lines.append(f"  {e:12s} {row[f'{e}_events_per_s']:10.4g}  {flicker_cell(row, e):52s} "
-                         f"{flicker_cell(row, e, 'noise'):52s} {best or '-':>12s} {ssim}")
-    return "\n".join(lines)

@@ -72,6 +72,7 @@ from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig, check_foot
 from gevsim.emulation.emulators import EMULATORS, PARAMS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
+from gevsim.experiments.variations import Variation, check_headline, check_sensitivity, check_tradeoff, variations
 from gevsim.illumination.base import MAX_FREQUENCY_HZ
 from gevsim.illumination.spec import SWEPT_WAVEFORMS, swept_spec
 from gevsim.pixel import load_preset
@@ -105,11 +106,23 @@ class Study:
     source: str
     text: str
     description: str = ""
+    headline: dict = dataclasses.field(default_factory=dict)  # the run the answer is about ([report] headline)
+    sensitivity: dict = dataclasses.field(default_factory=dict)  # checked [sensitivity] (gevsim.experiments.variations)
+    tradeoff: dict = dataclasses.field(default_factory=dict)  # checked [tradeoff]
 
     def runs(self) -> list[dict]:
         """Every combination of the sweep axes (in config order), as parameter dicts."""
         names = list(self.axes)
         return [dict(zip(names, values)) for values in itertools.product(*(self.axes[n] for n in names))]
+
+    def variations(self) -> list[Variation]:
+        """The runs around the headline run: ``[sensitivity]`` and ``[tradeoff]``
+        (:func:`gevsim.experiments.variations.variations`)."""
+        if not (self.sensitivity or self.tradeoff):
+            return []
+        preset = load_preset(self.headline.get("sensor", self.base["sensor"]))
+        return [dataclasses.replace(v, repeats=min(v.repeats, self.base["repeats"]))  # --repeats may lower it
+                for v in variations(self.headline, self.sensitivity, self.tradeoff, preset, int(self.base["seed"]))]
 
 
 def load_study(path: str | Path) -> Study:
@@ -117,7 +130,7 @@ def load_study(path: str | Path) -> Study:
     presets, scene manifests) are taken from the study file's folder, as datasets do, not from the working
     directory: two folders' studies naming ``my.toml`` name different presets."""
     path = Path(path)
-    raw, r = load_table(path, what="study config", tables=("study", "sweep", "report"))
+    raw, r = load_table(path, what="study config", tables=("study", "sweep", "report", "sensitivity", "tradeoff"))
     st = r.table(raw, "study")
     emulators = _check_study_table(st, r)
     sweep = r.table(raw, "sweep")
@@ -133,7 +146,7 @@ def load_study(path: str | Path) -> Study:
             r.fail("study.methods", f"method {method!r} needs the {needs!r} emulator in study.emulators")
     check_render_overrides(r.table(st, "render", "study."), r, "study.render")
     rep = r.table(raw, "report")
-    check_keys(rep, ("x", "lines"), source=r.source, where="report")
+    check_keys(rep, ("x", "lines", "headline"), source=r.source, where="report")
     for key in ("x", "lines"):
         if key in rep and not isinstance(rep[key], str):  # a list or table is not hashable, nor an axis
             r.fail(f"report.{key}", f"expected the name of a sweep axis, got {rep[key]!r}")
@@ -143,7 +156,28 @@ def load_study(path: str | Path) -> Study:
     study = Study(name=str(st.get("name", path.stem)), base=base, axes=dict(sweep), report=dict(rep),
                   source=r.source, text=path.read_text(), description=str(st.get("description", "")))
     _check_runs(study, r)
-    return study
+    return _with_variations(study, raw, r)
+
+
+def _with_variations(study: Study, raw: dict, r: TomlReader) -> Study:
+    """The study with its headline run and its checked ``[sensitivity]`` and ``[tradeoff]`` tables."""
+    headline = check_headline(study.report, study.runs(), r)
+    repeats = study.base["repeats"]
+    sensitivity = r.table(raw, "sensitivity")
+    if sensitivity:
+        sensitivity = check_sensitivity(sensitivity, load_preset(headline.get("sensor", study.base["sensor"])), r,
+                                        repeats)
+
+    def check_setting(setting: dict) -> None:
+        reader = TomlReader("")
+        _check_sweep({k: [v] for k, v in setting.items()}, reader)
+        try:
+            emulator_params({**headline, **setting})
+        except FieldError as err:
+            reader.fail(err.field, str(err))
+
+    tradeoff = check_tradeoff(r.table(raw, "tradeoff"), r, repeats, check_setting)
+    return dataclasses.replace(study, headline=headline, sensitivity=sensitivity, tradeoff=tradeoff)
 
 
 def _check_study_table(st: dict, r: TomlReader) -> tuple[str, ...]:
@@ -321,7 +355,7 @@ def run_config(study: Study, params: dict, *, seed: int | None = None) -> Emulat
              and load_preset(params.get("sensor", b["sensor"])).aps is not None),
         aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
         **emulator_params(params),
-        sensor_overrides={k: params[k] for k in SENSOR_AXES if k in params},
+        sensor_overrides={**{k: params[k] for k in SENSOR_AXES if k in params}, **params.get("assumed", {})},
         light_scale=float(params.get("light_scale", 1.0)),
         group_scale={group: float(params.get("flicker_scale", 1.0))},
         group_waveform={group: wave} if wave else {}, source=study.source)

@@ -66,6 +66,11 @@ def _run_study(study: Study, out: Path, *, cache_dir, executor, progress, keep_f
     runs = study.runs()
     rids = [run_id(study, p) for p in runs]  # once per run: it hashes every file of the scene
     jobs = [(p, rid, r) for p, rid in zip(runs, rids) for r in range(study.base["repeats"])]
+    seen = {(rid, r) for _, rid, r in jobs}
+    for v in study.variations():  # the runs around the headline (a trade-off setting may be a sweep run)
+        rid = run_id(study, v.params)
+        jobs += [(v.params, rid, r) for r in range(v.repeats) if (rid, r) not in seen]
+        seen.update((rid, r) for r in range(v.repeats))
     todo = [(p, rid, r) for p, rid, r in jobs if rep.finished_repeat(out, rid, r) is None]
     total, done = len(jobs), len(jobs) - len(todo)
     kwargs: dict = {"keep_files": keep_files}
@@ -80,23 +85,36 @@ def _run_study(study: Study, out: Path, *, cache_dir, executor, progress, keep_f
     return collect(study, out, rids=rids)
 
 
-def collect(study: Study, out: str | os.PathLike, *, rids: list[str] | None = None) -> list[dict]:
+def collect_variations(study: Study, out: str | os.PathLike) -> list[dict]:
+    """The rows of the runs around the headline (:meth:`Study.variations`), each with ``variation`` (its
+    kind), ``variation_key`` and ``variation_end``, aggregated over its own repeats."""
+    variations = study.variations()
+    rows = collect(study, out, runs=[v.params for v in variations], repeats=[v.repeats for v in variations])
+    for row, v in zip(rows, variations):
+        row.update({"variation": v.kind, "variation_key": v.key, "variation_end": v.end})
+    return rows
+
+
+def collect(study: Study, out: str | os.PathLike, *, rids: list[str] | None = None, runs: list[dict] | None = None,
+            repeats: list[int] | None = None) -> list[dict]:
     """The result rows of a finished study (each run's repeats aggregated); each run's per-pixel maps
-    are written to ``runs/<id>/maps.npz``. ``rids``: the runs' :func:`run_id` when known."""
+    are written to ``runs/<id>/maps.npz``. ``rids``: the runs' :func:`run_id` when known; ``runs`` and their
+    ``repeats``: other runs than the sweep's (default: the sweep's, with the study's repeats)."""
     from gevsim.experiments.aggregate import aggregate_run
     from gevsim.experiments.repeat import finished_repeat, repeat_paths
 
     out = Path(out)
     rows = []
-    runs = study.runs()
-    for params, rid in zip(runs, rids or [run_id(study, p) for p in runs]):
-        found = [finished_repeat(out, rid, r) for r in range(study.base["repeats"])]
+    runs = study.runs() if runs is None else runs
+    counts = repeats or [study.base["repeats"]] * len(runs)
+    for params, rid, n in zip(runs, rids or [run_id(study, p) for p in runs], counts):
+        found = [finished_repeat(out, rid, r) for r in range(n)]
         records = [r for r in found if r is not None]
         if len(records) < len(found):
             raise ConfigError(f"run {rid} has unfinished repeats; run the study again to finish them",
                               source=str(out))
         arrays = []
-        for r in range(study.base["repeats"]):
+        for r in range(n):
             with np.load(repeat_paths(out, rid, r)[1]) as data:
                 arrays.append({k: data[k] for k in data.files})
         group = flicker_group(study, params.get("scene", study.base["scene"]))
