@@ -24,8 +24,9 @@ from gevsim.evaluation.methods import METHODS
 from gevsim.experiments.dataset import KEYS as DATASET_KEYS
 from gevsim.experiments.dataset import RANDOM_WAVEFORMS, Randomize, load_dataset_config
 from gevsim.experiments.executors import EXECUTORS
-from gevsim.experiments.study import AXES, SENSOR_AXES, STUDY_KEYS, check_study_scenes, load_study
+from gevsim.experiments.study import AXES, SENSOR_AXES, STUDY_KEYS, load_study
 from gevsim.experiments.study import WAVEFORMS as SWEEP_WAVEFORMS
+from gevsim.experiments.study_run import check_study_scenes
 from gevsim.illumination.spec import WAVEFORMS
 from gevsim.optics.spec import OPTICS_KEYS
 from gevsim.pixel.aps import ApsParams

@@ -15,8 +15,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     from gevsim.experiments.executors import make_executor
     from gevsim.experiments.report import write_study_outputs
     from gevsim.experiments.report_tables import comparison_table
-    from gevsim.experiments.study import check_study_scenes, load_study
-    from gevsim.experiments.study_run import run_study
+    from gevsim.experiments.study import load_study
+    from gevsim.experiments.study_run import check_study_scenes, run_study
     from gevsim.io import exclusive
 
     study = load_study(args.config)

@@ -136,6 +136,17 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
         row.update({f"{e}_flicker_{name}_share": share for name, share
                     in region_shares(maps[f"{e}_flicker_per_pixel_s"], regions).items()})
     row.update({f"{name}_area_share": float(mask.mean()) for name, mask in regions.items()})
+    _scores(row, records, methods)
+    if f"{baseline}_spectrum" in first:
+        row[f"{baseline}_spectrum"] = first[f"{baseline}_spectrum"]
+    row["seconds"] = float(sum(r["seconds"] for r in records))
+    row["gevsim"] = first["gevsim"]
+    return row, maps
+
+
+def _scores(row: dict, records: list[dict], methods: list[str]) -> None:
+    """Each scored method's MSE/SSIM/PSNR over the repeats into ``row`` (NaN where a repeat could not score it;
+    nothing for a method the repeats did not score: a sensitivity run's)."""
     for method in (m for m in methods if all(m in r["metrics"] for r in records)):
         for k in ("mse", "ssim", "psnr"):
             values = np.array([r["metrics"][method][k] for r in records], float)
@@ -143,11 +154,6 @@ def aggregate_run(records: list[dict], arrays: list, emulators: list[str], metho
                 _put(row, f"{method}_{k}", mean_interval(values, confidence=CONFIDENCE))
             else:
                 row[f"{method}_{k}"] = float("nan")
-    if f"{baseline}_spectrum" in first:
-        row[f"{baseline}_spectrum"] = first[f"{baseline}_spectrum"]
-    row["seconds"] = float(sum(r["seconds"] for r in records))
-    row["gevsim"] = first["gevsim"]
-    return row, maps
 
 
 def _pixel_level(row: dict, records: list[dict], emulator: str, scale: float) -> np.ndarray:
@@ -158,6 +164,7 @@ def _pixel_level(row: dict, records: list[dict], emulator: str, scale: float) ->
     _put(row, f"{emulator}_pixel_flicker_per_pixel_s", mean_interval((run - nf) * scale, confidence=CONFIDENCE))
     _put(row, f"{emulator}_pixel_noise_per_pixel_s", mean_interval((nf - ideal) * scale, confidence=CONFIDENCE))
     row[f"{emulator}_pixel_events_per_pixel_s"] = float(run.mean() * scale)  # all the pixels made, per pixel
+    row[f"{emulator}_pixel_events_per_repeat"] = [int(v) for v in run]  # (runs on the same seeds: equal if unchanged)
     return (run - nf) * scale
 
 

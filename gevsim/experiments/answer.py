@@ -24,6 +24,17 @@ BASELINE, CANDIDATE = HEADLINE
 MAX_WORDS = 80
 
 
+def _g(v: float) -> str:
+    """A number to 3 significant digits without an exponent below a million: 1380, 30.4, 0.0123."""
+    return f"{float(f'{v:.3g}'):g}" if abs(v) < 1e6 else f"{v:.3g}"
+
+
+def rate_text(iv: Interval) -> str:
+    """An interval as the answer writes it: "1380 [1370, 1390]", or "not distinguishable from zero (...)"."""
+    text = f"{_g(iv.estimate)} [{_g(iv.low)}, {_g(iv.high)}]"
+    return f"not distinguishable from zero ({text})" if iv.includes_zero else text
+
+
 def headline_row(rows: list[dict], study: Any) -> dict:
     """The row of the run the answer is about (``[report] headline``; the first run when not given)."""
     want = study.headline or {}
@@ -38,7 +49,7 @@ def pixel_ratio(row: dict) -> tuple[Interval | None, str]:
     if iv is None:
         return None, "not measured"
     if math.isfinite(iv.low) and math.isfinite(iv.high):
-        return iv, iv.format()
+        return iv, rate_text(iv)
     bound = row.get(f"{level}flicker_rejection_ratio_at_least")
     return iv, (f"at least {bound:.3g}" if bound else "not determined")
 
@@ -56,7 +67,7 @@ def ratio_range(head: dict, variation_rows: list[dict]) -> tuple[float, float, s
         if r.get("variation") == "sensitivity":
             spans.setdefault(r["variation_key"], []).append(value)
     ref = values[0][0]
-    most = max(spans, key=lambda k: max(abs(math.log(v / ref)) for v in spans[k])) if spans else ""
+    most = max(spans, key=lambda k: max(max(v / ref, ref / v) for v in spans[k])) if spans else ""  # the widest
     return min(v for v, _ in values), max(v for v, _ in values), most
 
 
@@ -77,15 +88,15 @@ def bus_sentence(row: dict, sensor: str) -> str:
     if cap is None:
         return "The readout is not rate-limited (the preset gives no bus cap)."
     if not limited:
-        return f"The {sensor} bus (at most {cap:.3g} ev/px/s) delivers all of both streams."
+        return f"The {sensor} bus (at most {_g(cap)} ev/px/s) delivers all of both streams."
     parts = [f"{EMULATORS[e].label} with {_filled_by(row, e)}" for e in limited]
     noise = interval_of(row, f"{CANDIDATE}_pixel_noise_per_pixel_s")
-    tail = f" ({EMULATORS[CANDIDATE].label} noise {noise.format()} ev/px/s)" if noise and CANDIDATE in limited else ""
-    return f"The {sensor} bus delivers at most {cap:.3g} ev/px/s: {' and '.join(parts)} fill it{tail}."
+    tail = f" ({EMULATORS[CANDIDATE].label} noise {rate_text(noise)} ev/px/s)" if noise and CANDIDATE in limited else ""
+    return f"The {sensor} bus delivers at most {_g(cap)} ev/px/s: {' and '.join(parts)} fill it{tail}."
 
 
 def quality_sentence(rows: list[dict]) -> str:
-    """The best reconstruction of each event kind (mean SSIM over the runs), or ""."""
+    """The best reconstruction of each stream (mean SSIM over ``rows``: the headline's), or ""."""
     best: dict[str, tuple[float, str]] = {}
     for m in row_methods(rows, scored=True):
         kind = EMULATORS[METHODS[m].emulator].label
@@ -94,7 +105,8 @@ def quality_sentence(rows: list[dict]) -> str:
             best[kind] = (mean, m)
     if len(best) < 2:
         return ""
-    return "Best reconstruction SSIM: " + ", ".join(f"{k} {v:.3f} ({m})" for k, (v, m) in best.items()) + "."
+    texts = [f"{k} {v:.3f} ({m}{' with APS frames' if METHODS[m].needs_aps else ''})" for k, (v, m) in best.items()]
+    return "Best reconstruction SSIM: " + ", ".join(texts) + "."
 
 
 def answer(rows: list[dict], study: Any, variation_rows: list[dict], sensor: str) -> list[str]:
@@ -112,11 +124,11 @@ def answer(rows: list[dict], study: Any, variation_rows: list[dict], sensor: str
     lamp = f"{head['flicker_frequency_hz']:g} Hz {head['flicker_group']}" if head.get("flicker_frequency_hz") \
         else head["flicker_group"]
     spread = ratio_range(head, variation_rows)
-    moves = f" (estimate {spread[0]:.3g}-{spread[1]:.3g} over the assumed numbers)" if spread else ""
+    moves = f" (estimate {_g(spread[0])}-{_g(spread[1])} over the assumed numbers)" if spread else ""
     first = (f"At the pixels of a {sensor} ({where}; {head.get('scene', study.base['scene'])}, {lamp}), "
-             f"{EMULATORS[BASELINE].label} makes {rates[0].format()} flicker-induced ev/px/s and "
-             f"{EMULATORS[CANDIDATE].label} {rates[1].format()}: ratio {ratio}{moves}.")
-    return [s for s in (first, bus_sentence(head, sensor), quality_sentence(rows)) if s]
+             f"{EMULATORS[BASELINE].label} makes {rate_text(rates[0])} flicker-induced ev/px/s and "
+             f"{EMULATORS[CANDIDATE].label} {rate_text(rates[1])}: ratio {ratio}{moves}.")
+    return [s for s in (first, bus_sentence(head, sensor), quality_sentence([head])) if s]
 
 
 def words(sentences: list[str]) -> int:

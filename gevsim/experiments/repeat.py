@@ -119,13 +119,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     from gevsim.emulation.summary import summarize
 
     if threads is not None:  # in an executor's worker
-        import logging
-
-        import numba
-
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-        # The parent rendered (or loaded) every basis before fanning out and logged its quality warnings once.
-        logging.getLogger("gevsim.render").setLevel(logging.ERROR)
+        _in_worker(threads)
     start = time.perf_counter()
     rid = run_id(study, params) if rid is None else rid
     marker, arrays, folder = repeat_paths(out, rid, repeat)
@@ -160,13 +154,13 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
                                            periods.get(group), summary.duration_s)
         if name in FOLDED:
             folded[name] = {e: _fold(folder / f"{name}.h5", EMULATORS[e].stream, periods, (h, w),
-                                     summary.duration_s) for e in study.base["emulators"]}
+                                     summary.duration_s) for e in cfg.emulators}
     record: dict[str, Any] = {"id": rid, "repeat": repeat, "seed": cfg.seed, "params": params, "pixels": h * w,
               "width": w, "height": h, "duration_s": summary.duration_s, "steps": summary.steps,
               "flicker_frequency_hz": frequency, "periods_s": periods, "counts": counts, "made": made,
               "bus_limited": saturated,
               "event_probability": {e: stats[EMULATORS[e].stream].event_probability
-                                    for e in study.base["emulators"]},
+                                    for e in cfg.emulators},
               "render": _render_quality(setup.render_quality), "metrics": {},
               "bus_cap_per_pixel_s": _bus_cap(info.readout, h * w)}
     if repeat == 0 and not light:
@@ -174,19 +168,28 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     if not light:
         record["metrics"] = _scores(folder / "run.h5", study.base["methods"], aps=cfg.aps)
     baseline = HEADLINE[0]  # the spectrum of the stream the report compares against
-    if baseline in study.base["emulators"] and repeat == 0:
+    if baseline in cfg.emulators and repeat == 0:
         f, amp = event_spectrum(folded["run"][baseline]["rate"])
         record[f"{baseline}_spectrum"] = {"hz": f.tolist(), "amplitude": amp.tolist()}
-    data = _arrays(setup, folded)
     with atomic_path(arrays) as tmp:
         with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **data)
-    record["seconds"] = time.perf_counter() - start
-    record["gevsim"] = gevsim.__version__
+            np.savez_compressed(fh, **_arrays(setup, folded))
+    record.update(seconds=time.perf_counter() - start, gevsim=gevsim.__version__)
     atomic_write_text(marker, json.dumps(record, default=float))  # the marker: written last
     if not keep_files:
         shutil.rmtree(folder, ignore_errors=True)
     return record
+
+
+def _in_worker(threads: int) -> None:
+    """An executor's worker: numba's threads set, the render's quality warnings held back (the parent rendered
+    or loaded every basis before fanning out and logged them once)."""
+    import logging
+
+    import numba
+
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    logging.getLogger("gevsim.render").setLevel(logging.ERROR)
 
 
 def _bus_cap(readout: dict[str, dict], pixels: int) -> float | None:

@@ -69,7 +69,7 @@ from gevsim import __version__
 from gevsim._validate import FieldError
 from gevsim.config import TomlReader, load_table, resolve_relative
 from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig, check_footprint
-from gevsim.emulation.emulators import EMULATORS, PARAMS, check_emulator_list
+from gevsim.emulation.emulators import EMULATORS, HEADLINE, PARAMS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
 from gevsim.experiments.variations import Variation, check_headline, check_sensitivity, check_tradeoff, variations
@@ -340,6 +340,14 @@ def run_scene(study: Study, params: dict) -> str:
     return resolve_relative(params.get("scene", study.base["scene"]), Path(study.source).parent)
 
 
+def run_emulators(study: Study, params: dict) -> list[str]:
+    """The emulators of a run: the study's, but for a sensitivity run (its parameters hold ``assumed``) only the
+    pair its answer compares (:data:`~gevsim.emulation.emulators.HEADLINE`)."""
+    if "assumed" in params:
+        return [e for e in study.base["emulators"] if e in HEADLINE]
+    return list(study.base["emulators"])
+
+
 def run_config(study: Study, params: dict, *, seed: int | None = None) -> EmulationConfig:
     """The emulation config of a run (with noise seed ``seed``; default: the study's)."""
     b = study.base
@@ -347,7 +355,7 @@ def run_config(study: Study, params: dict, *, seed: int | None = None) -> Emulat
     scene = run_scene(study, params)
     wave = waveform_spec(params)
     cfg = EmulationConfig(
-        scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(b["emulators"]),
+        scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(run_emulators(study, params)),
         seed=b["seed"] if seed is None else seed,
         duration_s=b["duration_s"], step_s=b["step_s"], chunk_steps=b["chunk_steps"],
         frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]), footprint=b.get("footprint", "scene"),
@@ -376,22 +384,3 @@ def run_id(study: Study, params: dict) -> str:
     payload = json.dumps({"base": base, "params": params, "scene_sha256": scene_digest(run_scene(study, params)),
                           "sensor_sha256": preset_digest(sensor), "gevsim": __version__}, sort_keys=True, default=str)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
-
-
-def check_study_scenes(study: Study) -> None:
-    """Fail early (before any rendering) on a scene or flicker group that does not exist."""
-    from gevsim.render import load
-
-    for scene in study.axes.get("scene", [study.base["scene"]]):
-        try:
-            manifest = load(run_scene(study, {"scene": scene}))
-        except ConfigError as exc:  # an unknown name has no file of its own: name the study's key (#19)
-            if exc.source is not None:
-                raise
-            raise ConfigError(str(exc), source=study.source,
-                              key="sweep.scene" if "scene" in study.axes else "study.scene") from None
-        group = flicker_group(study, scene)
-        if group not in manifest.group_names:
-            raise ConfigError(f"scene {manifest.name!r} has no light group {group!r}"
-                              f"{suggest(group, manifest.group_names)}", source=study.source,
-                              key="study.flicker_group")

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from gevsim.errors import ConfigError
+from gevsim.errors import ConfigError, suggest
 from gevsim.experiments.executors import run_all
-from gevsim.experiments.study import Study, flicker_group, run_config, run_id
+from gevsim.experiments.study import Study, flicker_group, run_config, run_emulators, run_id, run_scene
 from gevsim.io import atomic_path, exclusive, sweep_stale
 
-__all__ = ["collect", "run_study"]
+__all__ = ["check_study_scenes", "collect", "collect_variations", "run_study"]
 
 
 def _prerender(study: Study, runs: list[dict], cache_dir: str | os.PathLike) -> None:
@@ -118,10 +118,29 @@ def collect(study: Study, out: str | os.PathLike, *, rids: list[str] | None = No
             with np.load(repeat_paths(out, rid, r)[1]) as data:
                 arrays.append({k: data[k] for k in data.files})
         group = flicker_group(study, params.get("scene", study.base["scene"]))
-        row, maps = aggregate_run(records, arrays, study.base["emulators"], study.base["methods"], group)
+        row, maps = aggregate_run(records, arrays, run_emulators(study, params), study.base["methods"], group)
         row["flicker_group"] = group
         with atomic_path(out / "runs" / rid / "maps.npz") as tmp:
             with open(tmp, "wb") as fh:
                 np.savez_compressed(fh, **maps)
         rows.append(row)
     return rows
+
+
+def check_study_scenes(study: Study) -> None:
+    """Fail early (before any rendering) on a scene or flicker group that does not exist."""
+    from gevsim.render import load
+
+    for scene in study.axes.get("scene", [study.base["scene"]]):
+        try:
+            manifest = load(run_scene(study, {"scene": scene}))
+        except ConfigError as exc:  # an unknown name has no file of its own: name the study's key (#19)
+            if exc.source is not None:
+                raise
+            raise ConfigError(str(exc), source=study.source,
+                              key="sweep.scene" if "scene" in study.axes else "study.scene") from None
+        group = flicker_group(study, scene)
+        if group not in manifest.group_names:
+            raise ConfigError(f"scene {manifest.name!r} has no light group {group!r}"
+                              f"{suggest(group, manifest.group_names)}", source=study.source,
+                              key="study.flicker_group")

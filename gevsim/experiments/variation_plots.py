@@ -40,7 +40,7 @@ def tornado(folder: Path, head: dict, variation_rows: list[dict], plt: Any) -> t
     ends = {k: [(end, iv) for end, iv in v if _finite(iv)] for k, v in ends.items()}
 
     def span(k: str) -> float:
-        return max((abs(math.log(iv.estimate / ref.estimate)) for _, iv in ends[k]), default=0.0)
+        return max((max(iv.estimate / ref.estimate, ref.estimate / iv.estimate) for _, iv in ends[k]), default=1.0)
 
     keys.sort(key=span)
     joint = [iv for r in variation_rows if r.get("variation") == "joint" and _finite(iv := pixel_ratio(r)[0])]
@@ -69,8 +69,8 @@ def tornado(folder: Path, head: dict, variation_rows: list[dict], plt: Any) -> t
     plt.close(fig)
     return TORNADO_FILE, ("The DVS/gradient ratio of flicker-induced events at the pixels with each assumed number of "
                           "the sensor preset at the ends of its plausible range (bars; whiskers: 95 % Fieller "
-                          "intervals, cut where one-sided), and with all of them drawn at once (diamonds); the line and "
-                          "band are the headline run's ratio and interval.")
+                          "intervals, cut where one-sided), and with all of them drawn at once (diamonds); the line "
+                          "and band are the headline run's ratio and interval.")
 
 
 #: Rates below this (ev/px/s) are drawn at it on the trade-off's log axes (with the interval's clipped part).
@@ -84,34 +84,40 @@ def _log_point(iv: Any) -> tuple[float, list[list[float]]]:
 
 
 def tradeoff(folder: Path, pts: list[Point], cap: float | None, plt: Any) -> tuple[str, str] | None:
-    """Left: flicker- against noise-induced events at the pixels, one point per (stream, setting). Right: the
-    best reconstruction's SSIM against the events the bus delivered, with the bus cap."""
-    if len({p.setting for p in pts}) < 2:
+    """Left: flicker- against noise-induced events at the pixels, one point per (stream, setting), numbered.
+    Right: the best reconstruction's SSIM against the events the pixels make, with the bus cap."""
+    settings = list(dict.fromkeys(p.setting for p in pts))
+    if len(settings) < 2:
         return None
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 5.5), constrained_layout=True)
     for p in pts:
         color = EMULATORS[p.emulator].color
         marker = "o" if p.emulator == BASELINE else "s"
+        tag = str(settings.index(p.setting))
         (x, xerr), (y, yerr) = _log_point(p.noise), _log_point(p.flicker)
         left.errorbar(x, y, xerr=xerr, yerr=yerr, fmt=marker, color=color, ms=6, capsize=2)
-        left.annotate(p.setting, (x, y), textcoords="offset points", xytext=(5, 4), fontsize=7)
+        left.annotate(tag, (x, y), textcoords="offset points", xytext=(6, 4), fontsize=9, color=color)
         if math.isfinite(p.ssim):
-            right.plot(p.delivered, p.ssim, marker, color=color, ms=7, mfc="none" if p.at_cap else color)
-            right.annotate(p.setting, (p.delivered, p.ssim), textcoords="offset points", xytext=(5, 4), fontsize=7)
+            right.plot(p.made, p.ssim, marker, color=color, ms=8, mfc="none" if p.at_cap else color)
+            right.annotate(tag, (p.made, p.ssim), textcoords="offset points", xytext=(6, 4), fontsize=9, color=color)
     for e in HEADLINE:
         left.plot([], [], "o" if e == BASELINE else "s", color=EMULATORS[e].color, label=EMULATORS[e].label)
     left.set(xscale="log", yscale="log", xlabel=f"noise-induced ev/px/s at the pixels (floor {LOG_FLOOR:g})",
              ylabel=f"flicker-induced ev/px/s at the pixels (floor {LOG_FLOOR:g})")
-    left.set_title("Flicker against noise (lower left wins)", fontsize=10)
-    left.legend(fontsize=8)
+    left.set_title("Flicker against noise, at the pixels (lower left wins)", fontsize=10)
+    left.legend(fontsize=8, loc="upper left")
     if cap:
         right.axvline(cap, color="k", ls="--", lw=1)
         right.annotate(f"bus cap {cap:.3g} ev/px/s", (cap, 0.02), xycoords=("data", "axes fraction"), rotation=90,
                        fontsize=8, ha="right")
-    right.set(xlabel="delivered ev/px/s (hollow: at the bus cap)", ylabel="best reconstruction SSIM")
+    right.set(xscale="log", xlabel="events the pixels make, ev/px/s (hollow: more than the bus delivers)",
+              ylabel="best reconstruction SSIM (of what the bus delivered)")
     right.set_title("Reconstruction against bandwidth", fontsize=10)
-    fig.savefig(folder / TRADEOFF_FILE, dpi=110)
+    right.xaxis.set_minor_formatter(plt.matplotlib.ticker.NullFormatter())  # minor labels collide on a short decade
+    fig.text(0.01, -0.01, "\n".join(f"{i}: {s}" for i, s in enumerate(settings)), fontsize=8, va="top")
+    fig.savefig(folder / TRADEOFF_FILE, dpi=110, bbox_inches="tight")
     plt.close(fig)
-    return TRADEOFF_FILE, ("Design settings around the headline run. Left: flicker- against noise-induced events at "
-                           "the pixels, before the bus (95 % intervals). Right: the best reconstruction's SSIM "
-                           "against what the bus delivered; hollow markers are streams at the bus cap.")
+    return TRADEOFF_FILE, ("Design settings around the headline run (numbered; 0 is the headline). Left: flicker- "
+                           "against noise-induced events at the pixels, before the bus (95 % intervals). Right: the "
+                           "best reconstruction's SSIM against the events the pixels make; hollow markers are "
+                           "streams the bus cannot carry whole (at its cap, dashed).")

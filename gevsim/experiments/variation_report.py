@@ -70,13 +70,23 @@ def sensitivity_lines(head: dict, variation_rows: list[dict], preset: Any) -> li
     return lines
 
 
+def _unchanged(row: dict, head: dict, emulator: str) -> bool:
+    """Whether a run on the headline's seeds made, in every repeat, exactly the headline's events of a stream
+    (its setting does not act on that stream)."""
+    key = f"{emulator}_pixel_events_per_repeat"
+    mine, theirs = row.get(key), head.get(key)
+    return mine is not None and theirs is not None and row is not head and mine == theirs[:len(mine)]
+
+
 def points(rows: list[dict]) -> list[Point]:
-    """The headline pair's points of each row (the headline first); a stream whose numbers a setting does not
-    change appears once."""
+    """The headline pair's points of each row (the headline, ``rows[0]``, first); a stream that a setting does
+    not change (the same events on the same seeds) appears only with the headline."""
     out: list[Point] = []
     for row in rows:
         setting = row.get("variation_key") if row.get("variation") == "tradeoff" else HEADLINE_SETTING
         for e in HEADLINE:
+            if _unchanged(row, rows[0], e):
+                continue
             flicker = interval_of(row, f"{e}_pixel_flicker_per_pixel_s")
             noise = interval_of(row, f"{e}_pixel_noise_per_pixel_s")
             if flicker is None or noise is None:
@@ -86,8 +96,7 @@ def points(rows: list[dict]) -> list[Point]:
             ssim, method = max(scored) if scored else (float("nan"), "-")
             p = Point(e, str(setting), flicker, noise, row[f"{e}_pixel_events_per_pixel_s"],
                       row[f"{e}_events_per_s"] / row["pixels"], float(ssim), method, bool(row.get(f"{e}_bus_limited")))
-            if not any(q.emulator == e and q.flicker == p.flicker and q.noise == p.noise for q in out):
-                out.append(p)
+            out.append(p)
     return out
 
 

@@ -132,7 +132,8 @@ def _row(**kw):
 
 
 def test_the_answer_is_three_sentences_and_says_the_bus_is_full_not_a_rate():
-    row = _row(dvs_pixel_flicker_per_pixel_s=(1380.0, 1370.0, 1390.0), gradient_pixel_flicker_per_pixel_s=(30.4, 28.5, 32.3),
+    row = _row(dvs_pixel_flicker_per_pixel_s=(1380.0, 1370.0, 1390.0),
+               gradient_pixel_flicker_per_pixel_s=(30.4, 28.5, 32.3),
                dvs_pixel_noise_per_pixel_s=(20.0, 19.0, 21.0), gradient_pixel_noise_per_pixel_s=(600.0, 590.0, 610.0),
                pixel_flicker_rejection_ratio=(45.3, 42.5, 48.5), dvs_flicker_per_pixel_s=(132.0, 132.0, 132.0),
                gradient_flicker_per_pixel_s=(0.0, -0.01, 0.01))
