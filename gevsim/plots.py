@@ -16,6 +16,7 @@ from gevsim.io import atomic_path
 from gevsim.tonemap import ToneMap
 
 if TYPE_CHECKING:
+    from matplotlib.colorbar import Colorbar
     from matplotlib.figure import Figure
 
     from gevsim.illumination import Waveform
@@ -42,16 +43,51 @@ def save_figure(fig: Figure, path: str | os.PathLike) -> None:
     plt.close(fig)
 
 
+#: A contact sheet's grey scale spans at most this many decades of irradiance below its bright end.
+SHEET_DECADES = 4.5
+#: Percentiles of the lit pixels' luminance giving the sheet's bright end and (within SHEET_DECADES) its dark end.
+SHEET_PERCENTILES = (0.5, 99.5)
+#: A pixel is lit when its luminance is within this many decades of the sequence's brightest 0.1 %.
+LIT_DECADES = 8.0
+#: Colour of the pixels darker than the sheet's scale (the colour bar's ``extend="min"`` triangle).
+UNDER_RGB = (0.12, 0.16, 0.45)
+
+
+def sheet_scale(frames: np.ndarray) -> ToneMap:
+    """The log scale of a contact sheet, set by the lit scene and not by an empty background.
+
+    The lit pixels are those (of every frame) whose luminance is positive and within
+    :data:`LIT_DECADES` of the brightest 0.1 %: a black background (zero, or the renderer's
+    tiny residue ten decades down) is not lit. The bright end is the lit pixels' 99.5th percentile of
+    luminance; the dark end their 0.5th percentile, but never more than :data:`SHEET_DECADES` (4.5)
+    decades below the bright end, about what a person tells apart on a grey scale. Pixels darker
+    than the dark end are clipped, and drawn as such (:data:`UNDER_RGB`). A sequence with no
+    positive pixel gets :meth:`ToneMap.from_ground_truth` of its clamped logarithm.
+    """
+    from gevsim.optics import luminance
+
+    y = np.asarray(luminance(np.asarray(frames, np.float64)), np.float64).ravel()
+    positive = y[np.isfinite(y) & (y > 0)]
+    if positive.size == 0:
+        return ToneMap.from_ground_truth(np.log(np.maximum(np.asarray(frames, np.float64), 1e-12)))
+    lit = positive[positive >= np.percentile(positive, 99.9) * 10.0 ** -LIT_DECADES]
+    low, high = np.log(np.percentile(lit, SHEET_PERCENTILES))
+    low = max(float(low), float(high) - SHEET_DECADES * np.log(10.0))
+    if high <= low:  # a flat image: centre it
+        low, high = low - 0.5, high + 0.5
+    return ToneMap(float(low), float(high))
+
+
 def contact_sheet(frames: np.ndarray, times_s: Sequence[float], path: str | os.PathLike, *, title: str = "",
                   max_frames: int = 12) -> None:
-    """Grid of up to ``max_frames`` tone-mapped frames labelled with time and mean illuminance."""
+    """Grid of up to ``max_frames`` log tone-mapped frames labelled with time and mean illuminance, on one
+    scale for the whole sequence set by the lit scene (:func:`sheet_scale`); darker pixels drawn in
+    :data:`UNDER_RGB`."""
     plt = _pyplot()
     from gevsim.optics import illuminance_lux, luminance
 
     idx = np.unique(np.linspace(0, len(frames) - 1, min(max_frames, len(frames))).round().astype(int))
-    log_e = np.log(np.maximum(np.asarray(frames, np.float64), 1e-12))
-    tone = ToneMap.from_ground_truth(log_e)
-    shown = tone(log_e)  # one scale for the whole sequence
+    tone = sheet_scale(frames)
     cols = min(4, len(idx))
     rows = int(np.ceil(len(idx) / cols))
     h, w = frames.shape[1:3]
@@ -59,29 +95,36 @@ def contact_sheet(frames: np.ndarray, times_s: Sequence[float], path: str | os.P
     for ax in axes.ravel():
         ax.axis("off")
     for ax, i in zip(axes.ravel(), idx):
-        img = shown[i] if shown.shape[-1] == 3 else shown[i, ..., 0]
-        ax.imshow(img, cmap=None if img.ndim == 3 else "gray", vmin=0, vmax=1)
-        y = luminance(frames[i] if frames.shape[-1] == 3 else frames[i, ..., 0])
+        frame = np.asarray(frames[i], np.float64)
+        frame = frame if frame.ndim == 3 else frame[..., None]
+        y = luminance(frame if frame.shape[-1] == 3 else frame[..., 0])
+        img = tone(np.log(np.maximum(frame, 1e-300)))
+        img = np.repeat(img, 3, axis=-1) if img.shape[-1] == 1 else img
+        img[y < np.exp(tone.low)] = UNDER_RGB  # clipped: darker than the scale
+        ax.imshow(img, vmin=0, vmax=1, interpolation="nearest")
         ax.set_title(f"t = {1e3 * times_s[i]:.2f} ms, {float(illuminance_lux(y).mean()):.1f} lx", fontsize=9)
-    fig.suptitle(f"{title}: focal-plane irradiance (log scale)", fontsize=11)
-    fig.tight_layout(rect=(0.0, 0.0, 0.88, 1.0))
+    fig.suptitle(f"{title}: focal-plane irradiance (log scale set by the lit scene)", fontsize=11)
+    fig.tight_layout(rect=(0.0, 0.0, 0.86, 1.0))
     _lux_scale(fig, tone)
     save_figure(fig, path)
 
 
-def _lux_scale(fig: Figure, tone: ToneMap) -> None:
+def _lux_scale(fig: Figure, tone: ToneMap) -> Colorbar:
     """A scale bar beside a contact sheet: grey level -> focal-plane illuminance (lx; 683 x the photopic-
-    equivalent irradiance the log tone map spans)."""
+    equivalent irradiance the log tone map spans); its triangle at the bottom: darker than the scale."""
     import matplotlib as mpl
 
     from gevsim.optics.photometry import K_M_LM_PER_W
 
-    cax = fig.add_axes((0.9, 0.12, 0.025, 0.72))
-    bar = fig.colorbar(mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0.0, 1.0), cmap="gray"), cax=cax)
+    cax = fig.add_axes((0.89, 0.12, 0.025, 0.72))
+    cmap = mpl.colormaps["gray"].with_extremes(under=UNDER_RGB)
+    bar = fig.colorbar(mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0.0, 1.0), cmap=cmap), cax=cax,
+                       extend="min")
     ticks = np.linspace(0.0, 1.0, 5)
     bar.set_ticks(ticks.tolist())
     bar.set_ticklabels([f"{K_M_LM_PER_W * np.exp(tone.low + v * (tone.high - tone.low)):.3g}" for v in ticks])
-    bar.set_label("illuminance on the chip (lx, log scale)")
+    bar.set_label("illuminance on the chip (lx, log scale; triangle: darker, clipped)")
+    return bar
 
 
 def waveform_samples(wf: Waveform, t_end_s: float, n: int = 4000) -> tuple[np.ndarray, np.ndarray]:

@@ -1,8 +1,11 @@
 """``gevsim view``: see what a sensor made of a scene, as event frames beside the ground truth.
 
 Each time window (``window_us``) becomes one picture with a panel per stream, side by side with the
-ground-truth log frame nearest the window's end (tone-mapped from the run's own range), their names
-above them and a time bar under them:
+ground-truth log frame nearest the window's end (tone-mapped from the run's own range). Each sensor
+pixel is drawn as a block of ``k`` x ``k`` picture pixels (nearest neighbour; ``k`` the least making a
+panel :data:`PANEL_MIN_PX` wide, at most :data:`MAX_SCALE`); above the panels a strip gives the window's
+time (``18.00-18.25 ms``) and the streams' names (DVS, gradient, gradient RC, CSDVS), and under them a
+bar shows where the window lies in the file:
 
 - brightness streams (DVS, CSDVS): per pixel, the net count of the window's events; ON blue, OFF
   red, on a dark background, brighter with more events (saturating at :data:`SATURATE` events);
@@ -31,13 +34,21 @@ __all__ = ["render_windows", "view"]
 
 #: Events at a pixel at which its colour saturates.
 SATURATE = 3
-#: Height of the strip naming the panels (px).
-LABEL_PX = 12
+#: Height of the strip above each row of panels giving its time and the panels' names (px).
+LABEL_PX = 22
+#: Text height in that strip (px).
+FONT_PX = 15
+#: A panel is drawn at least this wide (px; sensor pixels repeated by a whole number, at most MAX_SCALE).
+PANEL_MIN_PX = 300
+MAX_SCALE = 16
+#: Gap between panels and height of the time bar under them (px).
+GAP_PX, BAR_PX = 4, 5
 #: Windows in a PNG strip at most.
 STRIP_ROWS = 8
 #: What marks a picture as written by `gevsim view` (PNG Software text, GIF comment).
 MARK = "gevsim view"
 _ON, _OFF, _BACK = np.array([70, 140, 255]), np.array([255, 80, 60]), np.array([24, 24, 24])
+_TEXT, _TIME, _STRIP = (230, 230, 230), (255, 200, 90), (40, 40, 40)
 
 
 def _brightness_panel(ev: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -65,31 +76,73 @@ def _truth_panel(frames: np.ndarray, t_us: np.ndarray, at_us: int, low: float, h
 
 
 def _time_bar(width: int, start_us: int, end_us: int, total_us: int) -> np.ndarray:
-    bar = np.full((4, width, 3), 40, np.uint8)
+    bar = np.full((BAR_PX, width, 3), 40, np.uint8)
     a, b = (int(round(width * v / max(total_us, 1))) for v in (start_us, end_us))
-    bar[:, a:max(b, a + 1)] = (230, 230, 230)
+    bar[1:, a:max(b, a + 1)] = (230, 230, 230)
     return bar
 
 
-def _labels(names: list[str], panel_width: int, width: int) -> np.ndarray:
-    """A 12 px strip naming each panel (PIL's built-in bitmap font), to go above a row of panels."""
+def panel_scale(width: int) -> int:
+    """Picture pixels per sensor pixel: the least whole number making a panel PANEL_MIN_PX wide (1 to MAX_SCALE)."""
+    return int(min(MAX_SCALE, max(1, -(-PANEL_MIN_PX // max(width, 1)))))
+
+
+def window_label(start_us: int, end_us: int) -> str:
+    """A window's time as a strip shows it: ``18.00-18.25 ms`` (three decimals where a limit is not a whole
+    10 us)."""
+    digits = 3 if start_us % 10 or end_us % 10 else 2
+    return f"{start_us / 1000:.{digits}f}-{end_us / 1000:.{digits}f} ms"
+
+
+def stream_title(stream: str) -> str:
+    """A stream's human name (its emulator's label: DVS, gradient, gradient RC, CSDVS); others as they are."""
+    from gevsim.emulation.emulators import EMULATORS
+
+    return next((e.label for e in EMULATORS.values() if e.stream == stream), stream)
+
+
+def _font(size: int):
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size)  # Pillow >= 10.1 with FreeType: a scalable font
+    except (TypeError, OSError, ImportError):  # pragma: no cover - older Pillow: the small bitmap font
+        return ImageFont.load_default()
+
+
+def header(time: str, names: list[str], panel_width: int, width: int) -> np.ndarray:
+    """The strip above a row of panels: the window's time at the left, then each panel's name over it."""
     from PIL import Image, ImageDraw
 
-    strip = Image.new("RGB", (width, LABEL_PX), (40, 40, 40))
+    strip = Image.new("RGB", (width, LABEL_PX), _STRIP)
     draw = ImageDraw.Draw(strip)
+    font = _font(FONT_PX)
+    top = max(0, (LABEL_PX - FONT_PX) // 2 - 1)
+    draw.text((4, top), time, fill=_TIME, font=font)
+    after_time = 4 + int(draw.textlength(time, font=font)) + 14
     for i, name in enumerate(names):
-        draw.text((i * (panel_width + 2) + 2, 1), name, fill=(230, 230, 230))
+        left = i * (panel_width + GAP_PX) + 4
+        draw.text((max(left, after_time) if i == 0 else left, top), name, fill=_TEXT, font=font)
     return np.asarray(strip, np.uint8)
+
+
+def _default_streams(streams: list[str]) -> list[str]:
+    """Every stream, the emulators' own in their registry order (DVS, gradient, gradient RC, CSDVS) first."""
+    from gevsim.emulation.emulators import EMULATORS
+
+    known = [e.stream for e in EMULATORS.values() if e.stream in streams]
+    return known + sorted(s for s in streams if s not in known)
 
 
 def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,
                    start_us: int = 0, count: int | None = None) -> tuple[np.ndarray, list[str]]:
     """(N, height, width, 3) uint8 pictures of the windows ``[start + k window, start + (k + 1) window)``
-    of an emulation file, and the panels' names (left to right)."""
+    of an emulation file, and the panels' names (left to right: the streams, DVS first and then in the
+    emulators' order, and ``ground truth``; each picture shows their human names, :func:`stream_title`)."""
     if window_us < 1:
         raise ConfigError(f"the window must be at least 1 us, got {window_us}", key="--window-ms")
     with EventReader(path) as r:
-        names = sorted(r.streams, key=lambda s: s != "events") if streams is None else streams  # DVS first
+        names = _default_streams(list(r.streams)) if streams is None else streams
         for s in names:
             if s not in r.streams:
                 raise ConfigError(f"no stream {s!r}{suggest(s, r.streams)}; streams: {', '.join(r.streams)}",
@@ -100,9 +153,11 @@ def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: l
         n = min(n, count) if count else n
         pictures = []
         titles = names + (["ground truth"] if truth is not None else [])
+        shown = [stream_title(t) for t in titles]
+        k = panel_scale(shape[1])
         low, high = (np.percentile(truth[0], [1, 99]) if truth is not None else (0.0, 1.0))
-        for k in range(n):
-            a, b = start_us + k * window_us, start_us + (k + 1) * window_us
+        for i in range(n):
+            a, b = start_us + i * window_us, start_us + (i + 1) * window_us
             panels = []
             for s in names:
                 ev = r.read(s, t_start_us=a, t_end_us=b)
@@ -110,9 +165,10 @@ def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: l
                 panels.append(_gradient_panel(ev, shape) if gradient else _brightness_panel(ev, shape))
             if truth is not None:
                 panels.append(_truth_panel(truth[0], truth[1], b, float(low), float(high)))
-            gap = np.zeros((shape[0], 2, 3), np.uint8)
-            row = np.concatenate([p for panel in panels for p in (panel, gap)][:-1], axis=1)
-            label = _labels(titles, shape[1], row.shape[1])
+            gap = np.zeros((shape[0] * k, GAP_PX, 3), np.uint8)
+            big = [p.repeat(k, axis=0).repeat(k, axis=1) for p in panels]
+            row = np.concatenate([p for panel in big for p in (panel, gap)][:-1], axis=1)
+            label = header(window_label(a, b), shown, shape[1] * k, row.shape[1])
             pictures.append(np.concatenate([label, row, _time_bar(row.shape[1], a, b, total)], axis=0))
     return np.asarray(pictures), titles
 

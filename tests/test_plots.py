@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from gevsim.illumination import from_spec
-from gevsim.plots import waveform_samples
+from gevsim.plots import SHEET_DECADES, UNDER_RGB, _lux_scale, contact_sheet, sheet_scale, waveform_samples
+from gevsim.tonemap import ToneMap
 
 
 def test_a_pwm_is_drawn_with_its_edges_and_only_its_two_levels():
@@ -26,18 +28,53 @@ def test_the_contact_sheet_has_a_scale_in_lux(tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from gevsim.plots import _lux_scale, contact_sheet
-    from gevsim.tonemap import ToneMap
-
     frames = np.exp(np.linspace(-6, 0, 4 * 6 * 8)).reshape(4, 6, 8, 1)  # W/m^2, photopic-equivalent
     contact_sheet(frames, [0.0, 1e-3, 2e-3, 3e-3], tmp_path / "sheet.png", title="t")
     assert (tmp_path / "sheet.png").stat().st_size > 0
     tone = ToneMap(low=-6.0, high=0.0)
     fig = plt.figure()
-    _lux_scale(fig, tone)
+    bar = _lux_scale(fig, tone)
     labels = [t.get_text() for t in fig.axes[-1].get_yticklabels()]
     assert labels[0] == f"{683.0 * np.exp(-6.0):.3g}" and labels[-1] == "683"  # grey 0 and 1 in lux
+    assert bar.extend == "min" and np.allclose(bar.cmap.get_under()[:3], UNDER_RGB)  # darker: drawn as such
     plt.close(fig)
+
+
+def _mostly_black(black: float) -> np.ndarray:
+    """Four 40 x 50 frames, 90 % of each ``black``, the rest a lit scene of 0.01 to 10 W/m^2."""
+    rng = np.random.default_rng(7)
+    frames = np.full((4, 40, 50, 1), black)
+    frames[:, :4, :] = 10 ** rng.uniform(-2, 1, size=(4, 4, 50, 1))
+    return frames
+
+
+@pytest.mark.parametrize("black", [0.0, 1e-12])
+def test_the_contact_sheet_scale_comes_from_the_lit_pixels_when_90_percent_is_black(black):
+    frames = _mostly_black(black)
+    lit = frames[:, :4].ravel()
+    tone = sheet_scale(frames)
+    assert np.exp(tone.high) == pytest.approx(np.percentile(lit, 99.5))
+    assert np.exp(tone.low) == pytest.approx(np.percentile(lit, 0.5))  # the lit scene's own 3 decades
+    assert ToneMap.from_ground_truth(np.log(np.maximum(frames, 1e-12))).low < np.log(1e-11)  # the old scale
+
+
+def test_the_contact_sheet_shows_at_most_4_5_decades_and_draws_darker_pixels_as_clipped(tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
+    import gevsim.plots as plots
+
+    frames = _mostly_black(0.0)
+    frames[:, :2] = 10 ** np.linspace(-7, 1, 2 * 50).reshape(1, 2, 50, 1)  # a lit scene spanning 8 decades
+    tone = sheet_scale(frames)
+    assert tone.high - tone.low == pytest.approx(SHEET_DECADES * np.log(10.0))
+    kept = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path: kept.append(fig))
+    contact_sheet(frames, [0.0, 1e-3, 2e-3, 3e-3], tmp_path / "sheet.png", title="t")
+    shown = kept[0].axes[0].get_images()[0].get_array()
+    dark = frames[0, ..., 0] < np.exp(tone.low)
+    assert dark.mean() > 0.9 and np.allclose(shown[dark], UNDER_RGB)  # background and the darkest: clipped
+    assert not np.allclose(shown[~dark], UNDER_RGB, atol=0.02)
+    plt.close(kept[0])
 
 
 def test_quality_plot_gives_each_method_one_colour_and_each_series_one_line_style():
