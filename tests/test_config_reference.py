@@ -24,9 +24,11 @@ from gevsim.evaluation.methods import METHODS
 from gevsim.experiments.dataset import KEYS as DATASET_KEYS
 from gevsim.experiments.dataset import RANDOM_WAVEFORMS, Randomize, load_dataset_config
 from gevsim.experiments.executors import EXECUTORS
-from gevsim.experiments.study import AXES, SENSOR_AXES, STUDY_KEYS, load_study
+from gevsim.experiments.study import AXES, REPORT_KEYS, SENSOR_AXES, STUDY_KEYS, load_study
+from gevsim.experiments.study import TABLES as STUDY_TABLES
 from gevsim.experiments.study import WAVEFORMS as SWEEP_WAVEFORMS
 from gevsim.experiments.study_run import check_study_scenes
+from gevsim.experiments.variations import SENSITIVITY_KEYS, TRADEOFF_KEYS
 from gevsim.illumination.spec import WAVEFORMS
 from gevsim.optics.spec import OPTICS_KEYS
 from gevsim.pixel.aps import ApsParams
@@ -74,7 +76,7 @@ def emulation_subtables() -> dict[str, tuple[str, ...]]:
 TABLES = {
     "scene manifest tables": MANIFEST_TABLES,
     "emulation config tables": EMULATION_TABLES,
-    "study config tables": ("study", "sweep", "report"),
+    "study config tables": STUDY_TABLES,
     "dataset config tables": ("dataset",),
     "sensor preset tables": PRESET_TABLES,
 }
@@ -102,7 +104,9 @@ KEYS = {
     "study [study]": STUDY_KEYS,
     "study [sweep]": AXES + SENSOR_AXES,
     "study [sweep] waveform": SWEEP_WAVEFORMS,
-    "study [report]": ("x", "lines"),
+    "study [report]": REPORT_KEYS,
+    "study [sensitivity]": SENSITIVITY_KEYS,
+    "study [tradeoff]": TRADEOFF_KEYS,
     "reconstruction methods": tuple(METHODS),
     "executors": tuple(EXECUTORS),
     "dataset [dataset]": DATASET_KEYS,

@@ -87,6 +87,9 @@ SENSOR_AXES = ("threshold_mismatch_ln", "cutoff_hz", "max_cutoff_hz", "dark_curr
                "pixel_pitch_m", "fill_factor", "refractory_s", "threshold_on_ln", "threshold_off_ln")
 AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicker_scale", "scene", "sensor",
         "thresholds_ln", "hysteresis_ln") + SENSOR_AXES
+#: A study config's tables, and the keys of its ``[report]``.
+TABLES = ("study", "sweep", "report", "sensitivity", "tradeoff")
+REPORT_KEYS = ("x", "lines", "headline")
 #: A study's time grid unless its [study] table says otherwise: 20 ms in 20 us steps, frames at 500 Hz.
 STUDY_TIME = TimeGrid(duration_s=0.02, step_s=2e-5, frame_rate_hz=500.0)
 #: Repeats (noise seeds) per run when ``[study] repeats`` is not given.
@@ -130,7 +133,7 @@ def load_study(path: str | Path) -> Study:
     presets, scene manifests) are taken from the study file's folder, as datasets do, not from the working
     directory: two folders' studies naming ``my.toml`` name different presets."""
     path = Path(path)
-    raw, r = load_table(path, what="study config", tables=("study", "sweep", "report", "sensitivity", "tradeoff"))
+    raw, r = load_table(path, what="study config", tables=TABLES)
     st = r.table(raw, "study")
     emulators = _check_study_table(st, r)
     sweep = r.table(raw, "sweep")
@@ -146,7 +149,7 @@ def load_study(path: str | Path) -> Study:
             r.fail("study.methods", f"method {method!r} needs the {needs!r} emulator in study.emulators")
     check_render_overrides(r.table(st, "render", "study."), r, "study.render")
     rep = r.table(raw, "report")
-    check_keys(rep, ("x", "lines", "headline"), source=r.source, where="report")
+    check_keys(rep, REPORT_KEYS, source=r.source, where="report")
     for key in ("x", "lines"):
         if key in rep and not isinstance(rep[key], str):  # a list or table is not hashable, nor an axis
             r.fail(f"report.{key}", f"expected the name of a sweep axis, got {rep[key]!r}")

@@ -49,6 +49,9 @@ from gevsim.errors import ConfigError, check_keys, suggest
 LIGHT_VARIANTS = ("run", "no_flicker", "ideal")
 #: At most this many joint draws.
 MAX_JOINT = 64
+#: The keys of ``[sensitivity]`` and ``[tradeoff]``.
+SENSITIVITY_KEYS = ("assumed", "joint", "repeats")
+TRADEOFF_KEYS = ("settings", "repeats")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,7 +87,7 @@ def check_sensitivity(table: dict, preset: Any, r: TomlReader, repeats: int) -> 
     """``[sensitivity]``'s keys, checked against the headline sensor's preset (its ``assumed`` entries)."""
     if not table:
         return {}
-    check_keys(table, ("assumed", "joint", "repeats"), source=r.source, where="sensitivity")
+    check_keys(table, SENSITIVITY_KEYS, source=r.source, where="sensitivity")
     known = dict(preset.assumed)
     if not known:
         r.fail("sensitivity", f"the sensor preset {preset.name!r} marks no number assumed ([assumed] tables)")
@@ -107,7 +110,7 @@ def check_tradeoff(table: dict, r: TomlReader, repeats: int, check_setting: Call
     :class:`~gevsim.errors.ConfigError` for a bad one)."""
     if not table:
         return {}
-    check_keys(table, ("settings", "repeats"), source=r.source, where="tradeoff")
+    check_keys(table, TRADEOFF_KEYS, source=r.source, where="tradeoff")
     settings = r.list(table, "settings", "tradeoff.", of=dict, item="a table of sweep values")
     if not settings:
         r.fail("tradeoff.settings", "expected at least one setting, e.g. [{ hysteresis_ln = 0.02 }]")
