@@ -39,6 +39,7 @@ AXIS_UNITS = {
     "dark_current_a": ("dark current (A)", None),
     "read_noise_v": ("read noise (V)", None),
     "refractory_s": ("refractory period (s)", None),
+    "window": ("emulated pixels (window of the chip)", "pixels"),
 }
 
 #: How a bus-limited point is drawn: a hollow ring around the point, larger than any series' own marker.

@@ -42,14 +42,13 @@ spp = 4
 [sweep]                        # axes; the runs are their cartesian product
 frequency_hz = [100.0, 300.0, 1000.0]
 waveform = ["pwm", "sinusoid"] # native (the scene's own), pwm, sinusoid, fluorescent, sodium_hid, incandescent, dc
-duty = [0.5]
-modulation = [1.0]
-light_scale = [1.0]
 flicker_scale = [1.0]          # radiance factor of the flickering group (its share of the light)
 scene = ["office", "office_pan"]
 sensor = ["davis346"]
 thresholds_ln = [[0.05, 0.1, 0.2]]
 hysteresis_ln = [0.0, 0.02]    # gradient comparator hysteresis (0: the paper)
+window = [[64, 48], [96, 72]]  # rendered width x height (with footprint = "chip": a window of the chip); also
+                               # duty, modulation; docs/config.md lists every axis and [sensitivity], [tradeoff]
 [report]
 x = "frequency_hz"
 lines = "waveform"
@@ -86,7 +85,7 @@ STUDY_KEYS = ("name", "description", "scene", "sensor", "emulators", "flicker_gr
 SENSOR_AXES = ("threshold_mismatch_ln", "cutoff_hz", "max_cutoff_hz", "dark_current_a", "read_noise_v",
                "pixel_pitch_m", "fill_factor", "refractory_s", "threshold_on_ln", "threshold_off_ln")
 AXES = ("frequency_hz", "waveform", "duty", "modulation", "light_scale", "flicker_scale", "scene", "sensor",
-        "thresholds_ln", "hysteresis_ln") + SENSOR_AXES
+        "thresholds_ln", "hysteresis_ln", "window") + SENSOR_AXES
 #: A study config's tables, and the keys of its ``[report]``.
 TABLES = ("study", "sweep", "report", "sensitivity", "tradeoff")
 REPORT_KEYS = ("x", "lines", "headline")
@@ -231,6 +230,10 @@ def _check_sweep(sweep: dict, r: TomlReader) -> None:
                            for t in values)):
             r.fail("sweep.thresholds_ln", f"expected lists of positive finite numbers (one threshold set each), "
                                           f"got {values!r}")
+    for v in sweep.get("window", []):  # [width, height]: the rendered (with footprint = "chip": the chip's) window
+        if not (isinstance(v, list) and len(v) == 2 and all(isinstance(n, int) and not isinstance(n, bool)
+                                                              and 0 < n <= 100_000 for n in v)):
+            r.fail("sweep.window", f"expected [width, height] pairs of positive pixel counts, got {v!r}")
     for v in sweep.get("hysteresis_ln", []):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
             r.fail("sweep.hysteresis_ln", f"expected non-negative numbers, got {v!r}")
@@ -351,6 +354,14 @@ def run_emulators(study: Study, params: dict) -> list[str]:
     return list(study.base["emulators"])
 
 
+def run_render(study: Study, params: dict) -> dict:
+    """The render overrides of a run: the study's, with a swept ``window``'s width and height."""
+    render = dict(study.base["render"])
+    if "window" in params:
+        render.update(width=int(params["window"][0]), height=int(params["window"][1]))
+    return render
+
+
 def run_config(study: Study, params: dict, *, seed: int | None = None) -> EmulationConfig:
     """The emulation config of a run (with noise seed ``seed``; default: the study's)."""
     b = study.base
@@ -361,7 +372,7 @@ def run_config(study: Study, params: dict, *, seed: int | None = None) -> Emulat
         scene=scene, sensor=params.get("sensor", b["sensor"]), emulators=tuple(run_emulators(study, params)),
         seed=b["seed"] if seed is None else seed,
         duration_s=b["duration_s"], step_s=b["step_s"], chunk_steps=b["chunk_steps"],
-        frame_rate_hz=b["frame_rate_hz"], render=dict(b["render"]), footprint=b.get("footprint", "scene"),
+        frame_rate_hz=b["frame_rate_hz"], render=run_render(study, params), footprint=b.get("footprint", "scene"),
         aps=(any(METHODS[m].needs_aps for m in b["methods"])
              and load_preset(params.get("sensor", b["sensor"])).aps is not None),
         aps_exposure_s=min(5e-4, 0.5 / b["frame_rate_hz"]),
