@@ -118,7 +118,8 @@ def answer(rows: list[dict], study: Any, variation_rows: list[dict], sensor: str
         return []
     _, ratio = pixel_ratio(head)
     render = study.base.get("render", {})
-    size = f"{render.get('width', '?')}x{render.get('height', '?')}"
+    width, height = head.get("window") or (render.get("width", "?"), render.get("height", "?"))  # a swept window
+    size = f"{width}x{height}"
     where = (f"a {size} window at the chip's pitch" if study.base.get("footprint") == "chip" else
              f"the scene at {size}")
     lamp = f"{head['flicker_frequency_hz']:g} Hz {head['flicker_group']}" if head.get("flicker_frequency_hz") \

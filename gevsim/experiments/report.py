@@ -184,7 +184,7 @@ def event_strips(out: Path, study: Study, rows: list[dict]) -> list[tuple[str, s
     keys = [k for k in (study.report.get("lines"), study_plots.x_axis(study)) if k]
     seen, strips = set(), []
     for row in rows:
-        which = tuple(row.get(k) for k in keys)
+        which = json.dumps([row.get(k) for k in keys], default=str)  # a swept value may be a list (window)
         record = finished_repeat(out, row["id"], 0) or {}
         strip = record.get("strip")
         if which in seen or not strip or not (out / "runs" / row["id"] / strip["file"]).exists():

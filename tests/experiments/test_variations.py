@@ -148,3 +148,13 @@ def test_the_answer_is_three_sentences_and_says_the_bus_is_full_not_a_rate():
     assert "45.3 [42.5, 48.5]" in text and "96x72 window" in text
     assert "DVS with flicker and gradient with noise fill it" in text  # 1380 > 133 by flicker; 600 > 133 by noise
     assert "132" not in text  # the delivered difference of two full buses is no flicker rate
+
+
+def test_a_swept_window_sets_the_rendered_size(tmp_path):
+    from gevsim.experiments.study import run_config
+
+    study = load_study(write(tmp_path, around="", sweep='waveform = ["sinusoid"]\nwindow = [[24, 18], [32, 24]]'))
+    assert [(run_config(study, p).render["width"], run_config(study, p).render["height"]) for p in study.runs()] \
+        == [(24, 18), (32, 24)]
+    with pytest.raises(ConfigError, match="sweep.window"):
+        load_study(write(tmp_path, around="", sweep='waveform = ["sinusoid"]\nwindow = [[24, 0]]'))
