@@ -50,10 +50,13 @@ _non_negative_int = _int_at_least(0)
 
 
 def _progress(desc: str, enabled: bool, unit: str = "pose"):
-    """A ``progress(done, total)`` callback drawing a tqdm bar (or nothing: with ``-q``, or when
-    stderr is not a terminal, where a bar's redraws would fill a log file)."""
-    if not enabled or not sys.stderr.isatty():
+    """A ``progress(done, total)`` callback drawing a tqdm bar (nothing with ``-q``). Where stderr is not a
+    terminal (a log file, ``make demo`` piped), where a bar's redraws would fill the file, one line at each
+    tenth of the work and at least every :data:`LOG_EVERY_S` seconds instead: long work is never silent."""
+    if not enabled:
         return None, lambda: None
+    if not sys.stderr.isatty():
+        return _log_lines(desc, unit), lambda: None
     from tqdm import tqdm
 
     bar = tqdm(desc=desc, unit=unit, leave=True, dynamic_ncols=True)
@@ -64,6 +67,28 @@ def _progress(desc: str, enabled: bool, unit: str = "pose"):
         bar.refresh()
 
     return update, bar.close
+
+
+#: Without a terminal, a progress line at least this often (s) while work finishes.
+LOG_EVERY_S = 30.0
+
+
+def _log_lines(desc: str, unit: str):
+    """``progress(done, total)`` writing "desc: 12/76 jobs (15 %), 41 s" lines to stderr."""
+    import time
+
+    start = time.monotonic()
+    last = {"tenth": -1, "at": start}
+
+    def update(done: int, total: int) -> None:
+        now = time.monotonic()
+        tenth = 10 * done // max(total, 1)
+        if tenth > last["tenth"] or now - last["at"] >= LOG_EVERY_S or done == total:
+            last.update(tenth=tenth, at=now)
+            print(f"{desc}: {done}/{total} {unit}s ({100 * done // max(total, 1)} %), {now - start:.0f} s",
+                  file=sys.stderr, flush=True)
+
+    return update
 
 
 def _emulator_names(args: argparse.Namespace, choices=None) -> tuple[str, ...] | None:

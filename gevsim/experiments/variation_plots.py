@@ -33,22 +33,23 @@ def tornado(folder: Path, head: dict, variation_rows: list[dict], plt: Any) -> t
     whiskers), the widest on top; the joint draws as a row of points; the headline's ratio as a line."""
     ref = pixel_ratio(head)[0]
     sens = [r for r in variation_rows if r.get("variation") == "sensitivity"]
-    if not sens or not _finite(ref):
+    if not sens or ref is None or not _finite(ref):
         return None
     keys = list(dict.fromkeys(r["variation_key"] for r in sens))
     ends = {k: [(r["variation_end"], pixel_ratio(r)[0]) for r in sens if r["variation_key"] == k] for k in keys}
-    ends = {k: [(end, iv) for end, iv in v if _finite(iv)] for k, v in ends.items()}
+    kept = {k: [(end, iv) for end, iv in v if iv is not None and _finite(iv)] for k, v in ends.items()}
 
     def span(k: str) -> float:
-        return max((max(iv.estimate / ref.estimate, ref.estimate / iv.estimate) for _, iv in ends[k]), default=1.0)
+        return max((max(iv.estimate / ref.estimate, ref.estimate / iv.estimate) for _, iv in kept[k]), default=1.0)
 
     keys.sort(key=span)
-    joint = [iv for r in variation_rows if r.get("variation") == "joint" and _finite(iv := pixel_ratio(r)[0])]
+    joint = [iv for r in variation_rows if r.get("variation") == "joint"
+             and (iv := pixel_ratio(r)[0]) is not None and _finite(iv)]
     fig, ax = plt.subplots(figsize=(8, 1.2 + 0.45 * (len(keys) + bool(joint))), constrained_layout=True)
     for y, k in enumerate(keys):
-        values = [iv.estimate for _, iv in ends[k]] + [ref.estimate]
+        values = [iv.estimate for _, iv in kept[k]] + [ref.estimate]
         ax.barh(y, max(values) - min(values), left=min(values), color="#9ecae1", edgecolor="#3182bd", height=0.6)
-        for end, iv in ends[k]:
+        for end, iv in kept[k]:
             ax.errorbar(iv.estimate, y, xerr=_whisker(iv), fmt="o",
                         color="#08519c", ms=4, capsize=2)
             ax.annotate(end, (iv.estimate, y), textcoords="offset points", xytext=(0, 7), ha="center", fontsize=7)
