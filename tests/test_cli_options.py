@@ -27,10 +27,12 @@ def test_verbose_after_the_subcommand_turns_on_gevsims_loggers_only(monkeypatch)
     assert logging.getLogger().level > logging.DEBUG  # the libraries' loggers stay quiet
 
 
-def test_no_progress_bar_when_stderr_is_not_a_terminal():
+def test_no_progress_bar_when_stderr_is_not_a_terminal(capsys):
     update, close = cli._progress("x", True)  # pytest captures stderr: not a terminal
-    assert update is None
+    update(1, 2)
     close()
+    err = capsys.readouterr().err
+    assert err == "x: 1/2 poses (50 %), 0 s\n"  # a plain line, no bar's carriage returns
 
 
 def test_emulate_overrides_size_duration_and_emulators(tmp_path):
