@@ -41,10 +41,16 @@ def headline_row(rows: list[dict], study: Any) -> dict:
     return next((r for r in rows if all(r.get(k) == v for k, v in want.items())), rows[0])
 
 
+def rate_level(row: dict) -> str:
+    """The prefix of a row's rates at the pixels ("pixel_"), or "" (what the bus delivered) where its records
+    did not keep what the pixels made."""
+    return "pixel_" if f"{CANDIDATE}_pixel_flicker_per_pixel_s" in row else ""
+
+
 def pixel_ratio(row: dict) -> tuple[Interval | None, str]:
     """The DVS/gradient ratio of flicker-induced rates at the pixels (the bus's where the pixels' were not
     kept): its interval and its text ("45.3 [42.5, 48.5]", "at least 18.2", ...)."""
-    level = "pixel_" if f"{CANDIDATE}_pixel_flicker_per_pixel_s" in row else ""
+    level = rate_level(row)
     iv = interval_of(row, f"{level}flicker_rejection_ratio")
     if iv is None:
         return None, "not measured"

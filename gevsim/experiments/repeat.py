@@ -36,7 +36,7 @@ from gevsim._portable import weighted_sum
 from gevsim.emulation.emulators import EMULATORS, HEADLINE
 from gevsim.evaluation.methods import METHODS
 from gevsim.experiments.study import Study, flicker_group, run_config, run_id
-from gevsim.experiments.variations import LIGHT_VARIANTS
+from gevsim.experiments.variations import LIGHT_VARIANTS, is_sensitivity
 from gevsim.io import atomic_path, atomic_write_text
 from gevsim.metrics.attribution import PHASE_BINS, phase_histogram
 
@@ -136,7 +136,7 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     made: dict[str, dict[str, int]] = {}  # what the pixels made (the readout's requests), before the bus
     saturated: dict[str, list[str]] = {}
     folded: dict[str, dict[str, dict]] = {}
-    light = "assumed" in params  # a sensitivity run: rates only (gevsim.experiments.variations)
+    light = is_sensitivity(params)  # rates only
     for name, kw in VARIANTS.items():
         if light and name not in LIGHT_VARIANTS:
             continue

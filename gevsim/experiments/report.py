@@ -20,7 +20,7 @@ import gevsim
 from gevsim.emulation.emulators import EMULATORS, HEADLINE
 from gevsim.experiments import study_plots
 from gevsim.experiments.aggregate import agreement, interval_of, row_emulators
-from gevsim.experiments.answer import answer, headline_row, pixel_ratio
+from gevsim.experiments.answer import answer, headline_row, pixel_ratio, rate_level
 from gevsim.experiments.report_tables import flicker_cell, fmt, key_table, ratio_text  # noqa: F401 (re-exported)
 from gevsim.experiments.study import Study, run_id
 
@@ -54,7 +54,7 @@ def findings(rows: list[dict], study: Study) -> list[str]:
     out = []
     emulators = row_emulators(rows)
     for row in rows:
-        level = "pixel_" if f"{CANDIDATE}_pixel_flicker_per_pixel_s" in row else ""
+        level = rate_level(row)
         cells = [f"{EMULATORS[e].label} {fmt(row, f'{e}_{level}flicker_per_pixel_s')}" for e in emulators
                  if f"{e}_{level}flicker_per_pixel_s" in row]
         capped = [EMULATORS[e].label for e in emulators if row.get(f"{e}_bus_limited")]

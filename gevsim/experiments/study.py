@@ -71,7 +71,7 @@ from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig, check_foot
 from gevsim.emulation.emulators import EMULATORS, HEADLINE, PARAMS, check_emulator_list
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.evaluation.methods import METHODS, check_method
-from gevsim.experiments.variations import Variation, check_headline, check_sensitivity, check_tradeoff, variations
+from gevsim.experiments import variations as around
 from gevsim.illumination.base import MAX_FREQUENCY_HZ
 from gevsim.illumination.spec import SWEPT_WAVEFORMS, swept_spec
 from gevsim.pixel import load_preset
@@ -117,14 +117,14 @@ class Study:
         names = list(self.axes)
         return [dict(zip(names, values)) for values in itertools.product(*(self.axes[n] for n in names))]
 
-    def variations(self) -> list[Variation]:
+    def variations(self) -> list[around.Variation]:
         """The runs around the headline run: ``[sensitivity]`` and ``[tradeoff]``
         (:func:`gevsim.experiments.variations.variations`)."""
         if not (self.sensitivity or self.tradeoff):
             return []
-        preset = load_preset(self.headline.get("sensor", self.base["sensor"]))
+        preset, seed = load_preset(self.headline.get("sensor", self.base["sensor"])), int(self.base["seed"])
         return [dataclasses.replace(v, repeats=min(v.repeats, self.base["repeats"]))  # --repeats may lower it
-                for v in variations(self.headline, self.sensitivity, self.tradeoff, preset, int(self.base["seed"]))]
+                for v in around.variations(self.headline, self.sensitivity, self.tradeoff, preset, seed)]
 
 
 def load_study(path: str | Path) -> Study:
@@ -163,12 +163,12 @@ def load_study(path: str | Path) -> Study:
 
 def _with_variations(study: Study, raw: dict, r: TomlReader) -> Study:
     """The study with its headline run and its checked ``[sensitivity]`` and ``[tradeoff]`` tables."""
-    headline = check_headline(study.report, study.runs(), r)
+    headline = around.check_headline(study.report, study.runs(), r)
     repeats = study.base["repeats"]
     sensitivity = r.table(raw, "sensitivity")
     if sensitivity:
-        sensitivity = check_sensitivity(sensitivity, load_preset(headline.get("sensor", study.base["sensor"])), r,
-                                        repeats)
+        preset = load_preset(headline.get("sensor", study.base["sensor"]))
+        sensitivity = around.check_sensitivity(sensitivity, preset, r, repeats)
 
     def check_setting(setting: dict) -> None:
         reader = TomlReader("")
@@ -178,7 +178,7 @@ def _with_variations(study: Study, raw: dict, r: TomlReader) -> Study:
         except FieldError as err:
             reader.fail(err.field, str(err))
 
-    tradeoff = check_tradeoff(r.table(raw, "tradeoff"), r, repeats, check_setting)
+    tradeoff = around.check_tradeoff(r.table(raw, "tradeoff"), r, repeats, check_setting)
     return dataclasses.replace(study, headline=headline, sensitivity=sensitivity, tradeoff=tradeoff)
 
 
@@ -349,7 +349,7 @@ def run_scene(study: Study, params: dict) -> str:
 def run_emulators(study: Study, params: dict) -> list[str]:
     """The emulators of a run: the study's, but for a sensitivity run (its parameters hold ``assumed``) only the
     pair its answer compares (:data:`~gevsim.emulation.emulators.HEADLINE`)."""
-    if "assumed" in params:
+    if around.is_sensitivity(params):
         return [e for e in study.base["emulators"] if e in HEADLINE]
     return list(study.base["emulators"])
 

@@ -67,6 +67,12 @@ class Variation:
     repeats: int
 
 
+def is_sensitivity(params: dict) -> bool:
+    """Whether a run is a sensitivity run (its parameters hold ``assumed``): its jobs emulate the compared pair
+    only, run :data:`LIGHT_VARIANTS` and score no reconstruction."""
+    return "assumed" in params
+
+
 def check_headline(report: dict, runs: list[dict], r: TomlReader) -> dict:
     """The sweep run ``[report] headline`` names (its parameters), or the first run when not given."""
     if "headline" not in report:
