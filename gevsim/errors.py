@@ -36,6 +36,11 @@ def suggest(name: str, choices: Iterable[str]) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
+def clipped(text: str, limit: int = 80) -> str:
+    """``text`` cut to ``limit`` characters for a one-line message (a 4,000-character path stays readable)."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
 def check_keys(table: dict, allowed: Iterable[str], *, source: str | None, where: str) -> None:
     """Raise :class:`ConfigError` for the first key of ``table`` not in ``allowed``."""
     allowed = list(allowed)

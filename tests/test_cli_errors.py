@@ -4,6 +4,7 @@ and keeps its traceback."""
 import pytest
 
 from gevsim import cli
+from gevsim._validate import FieldError
 from gevsim.errors import ConfigError, MissingExtraError
 
 
@@ -14,7 +15,8 @@ def _failing(exc):
 
 
 @pytest.mark.parametrize("exc", [ConfigError("bad value", source="x.toml", key="a.b"),
-                                 MissingExtraError("plots need matplotlib: pip install 'gevsim[plot]'")])
+                                 MissingExtraError("plots need matplotlib: pip install 'gevsim[plot]'"),
+                                 FieldError("illuminance_lux", "illuminance_lux must be <= 1e+06, got 1e+30")])
 def test_gevsim_errors_are_one_line(monkeypatch, capsys, exc):
     monkeypatch.setattr(cli, "cmd_info", _failing(exc))
     assert cli.main(["info"]) == 2
@@ -148,3 +150,15 @@ def test_a_file_missing_a_root_attribute_is_named(tmp_path, capsys, frames_file,
     assert cli.main(["reconstruct", str(bad), "--method", "dct", "--out", str(tmp_path / "r")]) == 2
     assert capsys.readouterr().err == (f"gevsim: error: {bad}: root attribute {attr!r} is missing: not a file "
                                        "written by gevsim, or damaged\n")
+
+
+@pytest.mark.parametrize("argv", [["render", "a" * 300, "--out", "{tmp}/r"],
+                                  ["render", "a" * 300 + ".toml", "--out", "{tmp}/r"],
+                                  ["emulate", "experiments/office_small.toml", "--out", "{tmp}/" + "b" * 300 + ".h5"]])
+def test_a_name_past_the_file_systems_limit_is_one_line(tmp_path, capsys, argv):
+    # A scene name of 300 bytes raised "OSError: File name too long" from the manifest's lookup (issue 36).
+    assert cli.main([a.format(tmp=tmp_path) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("gevsim: error: ") and err.count("\n") == 1 and "too long" in err
+    assert " characters)" in err and len(err) < 300  # the name is cut, with its length
+    assert list(tmp_path.iterdir()) == []

@@ -4,7 +4,9 @@
 The CLI parses arguments, sets up logging and progress bars and calls the
 library; one module per group of commands. Bad input (:class:`~gevsim.errors.ConfigError`)
 and a missing optional extra (:class:`~gevsim.errors.MissingExtraError`) print one line
-naming the file and key and exit with code 2; anything else is a bug and shows its traceback.
+naming the file and key and exit with code 2, as does a checked value out of range
+(:class:`~gevsim._validate.FieldError`, raised where a flag's value first meets its physics);
+anything else is a bug and shows its traceback.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import sys
 from concurrent.futures import BrokenExecutor
 from pathlib import Path
 
+from gevsim._validate import FieldError
 from gevsim.cli._common import _progress
 from gevsim.cli.emulate import cmd_emulate
 from gevsim.cli.files import cmd_export, cmd_reconstruct, cmd_view
@@ -24,7 +27,7 @@ from gevsim.cli.info import cmd_info, cmd_presets, cmd_scenes, cmd_validate
 from gevsim.cli.parser import build_parser
 from gevsim.cli.render import cmd_render
 from gevsim.cli.runs import cmd_dataset, cmd_study
-from gevsim.errors import GevsimError, one_line
+from gevsim.errors import GevsimError, clipped, one_line
 
 __all__ = ["build_parser", "main", "_progress", "cmd_dataset", "cmd_emulate", "cmd_export", "cmd_info",
            "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_validate", "cmd_view"]
@@ -44,6 +47,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.verbose:
             raise
         print(f"gevsim: error: {exc}", file=sys.stderr)
+        return 2
+    except FieldError as exc:  # a checked value out of range (a flag's value the parser cannot bound): bad input
+        if args.verbose:
+            raise
+        print(f"gevsim: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("gevsim: interrupted", file=sys.stderr)
@@ -66,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
             from gevsim.io._h5discard import disk_error
 
             error = disk_error(exc, None) or exc
-        if not isinstance(error, OSError) or error.errno not in DISK_ERRORS or args.verbose:
+        if not isinstance(error, OSError) or error.errno not in DISK_ERRORS + PATH_ERRORS or args.verbose:
             raise
         where = _failed_path(error.filename, str(exc)) or (f"{args.out}: " if getattr(args, "out", None) else "")
         print(f"gevsim: error: {where}{os.strerror(error.errno).lower()}", file=sys.stderr)
@@ -75,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
 
 #: errno values that mean "this disk cannot take the output" rather than a bug.
 DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
+#: errno values that mean "no such path can exist here" (a name past the file system's limit, a loop of links).
+PATH_ERRORS = (errno.ENAMETOOLONG, errno.ELOOP)
 
 
 def _failed_path(name: str | bytes | None, message: str) -> str:
@@ -90,5 +100,5 @@ def _failed_path(name: str | bytes | None, message: str) -> str:
     for i, part in enumerate(parts):  # a stage ".<target>.gevsim-XXXXXXXX<suffix>" stands for its target
         staged = _STAGE.match(part)
         if staged:
-            return f"{Path(*parts[:i], staged['name'])}: "
-    return f"{Path(*parts)}: "
+            return f"{clipped(str(Path(*parts[:i], staged['name'])))}: "
+    return f"{clipped(str(Path(*parts)))}: "

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from gevsim.config import TomlReader, read_toml, resource_tomls
-from gevsim.errors import ConfigError, check_keys, suggest
+from gevsim.errors import ConfigError, check_keys, clipped, suggest
 from gevsim.illumination import Waveform
 from gevsim.illumination import from_spec as waveform_from_spec
 from gevsim.io.ownership import check_name
@@ -127,15 +127,17 @@ def builtin_scenes() -> dict[str, Path]:
 def resolve(scene: str | Path) -> Path:
     """A manifest path from a path or the name of a built-in scene."""
     path = Path(scene)
-    if path.suffix == ".toml" or path.exists():
-        if not path.is_file():
-            raise ConfigError("no such scene manifest", source=str(path))
-        return path
+    try:  # a name too long for the file system is no manifest either
+        if path.suffix == ".toml" or path.exists():
+            if not path.is_file():
+                raise ConfigError("no such scene manifest", source=clipped(str(path)))
+            return path
+    except OSError as exc:
+        raise ConfigError(f"no such scene manifest ({exc.strerror or exc})", source=clipped(str(scene))) from None
     scenes = builtin_scenes()
     if str(scene) not in scenes:
-        raise ConfigError(
-            f"no scene manifest {str(scene)!r}{suggest(str(scene), scenes)}; built-in scenes: {', '.join(scenes)}"
-        )
+        raise ConfigError(f"no scene manifest {clipped(str(scene))!r}{suggest(str(scene), scenes)}; "
+                          f"built-in scenes: {', '.join(scenes)}")
     return scenes[str(scene)]
 
 
