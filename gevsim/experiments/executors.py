@@ -16,10 +16,11 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import re
 import threading
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import BrokenExecutor, Executor, ProcessPoolExecutor, as_completed
 from typing import Any
 
 from gevsim.errors import ConfigError, MissingExtraError, one_line, suggest
@@ -77,6 +78,32 @@ def _dask(workers: int | None, scheduler: str | None, processes: bool) -> Iterat
         from dask.distributed import Client, LocalCluster
     except ImportError:
         raise MissingExtraError("the dask executor needs dask.distributed: pip install 'gevsim[dask]'") from None
+    try:
+        with _dask_client(workers, scheduler, processes, Client, LocalCluster) as executor:
+            yield executor
+    except Exception as exc:
+        dead = _dead_worker(exc)
+        if dead is None:
+            raise
+        raise BrokenExecutor(dead) from exc
+
+
+def _dead_worker(exc: BaseException) -> str | None:
+    """What a Dask error says about a worker that died (killed by the kernel for memory, by a signal, or
+    restarted by its nanny until the task was given up), or None where ``exc`` is about something else."""
+    from distributed.scheduler import KilledWorker
+
+    if isinstance(exc, KilledWorker):
+        return f"a Dask worker died running {exc.args[0] if exc.args else 'a run'} and the task was given up"
+    if isinstance(exc, RuntimeError) and re.search(r"Nanny failed to start|Worker failed to start", str(exc)):
+        return f"a Dask worker could not be started or restarted ({one_line(exc)})"
+    return None
+
+
+@contextlib.contextmanager
+def _dask_client(workers: int | None, scheduler: str | None, processes: bool, Client: Any,
+                 LocalCluster: Any) -> Iterator[Executor]:
+    """The executor of a client of ``scheduler`` or of a new LocalCluster (see :func:`_dask`)."""
     with contextlib.ExitStack() as stack:
         if scheduler is not None:
             if workers is not None:

@@ -1,4 +1,5 @@
-"""Executors: a local pool's workers do not outlive the process that started them, even after kill -9."""
+"""Executors: a local pool's workers do not outlive the process that started them, even after kill -9; a
+Dask worker that dies is a BrokenExecutor (the CLI's one line), as the local pool's is."""
 
 import os
 import signal
@@ -6,6 +7,10 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import pytest
+
+from gevsim.experiments.executors import make_executor
 
 PARENT = """
 import os, time
@@ -51,3 +56,27 @@ def test_pool_workers_exit_when_their_parent_is_killed(tmp_path):
     for p in left:  # do not leave them behind if the test fails
         os.kill(p, signal.SIGKILL)
     assert not left, f"workers {left} outlived their parent"
+
+
+def _killed(_):
+    """What a Dask client raises for a task whose workers died (a nanny's restarts spent): distributed's own
+    KilledWorker, raised here inside a threads-only cluster where a real death would take the test with it."""
+    from types import SimpleNamespace
+
+    from distributed.scheduler import KilledWorker
+
+    raise KilledWorker("run_one-3f2a", SimpleNamespace(address="tcp://127.0.0.1:40000"), 3)
+
+
+def test_a_dask_worker_that_dies_is_a_broken_executor_not_a_dask_traceback():
+    # Killing a Dask worker during `study --executor dask` gave distributed's own traceback (issue 36); the
+    # local pool's BrokenProcessPool already gave the CLI's one line ("a worker process died ...", exit 1).
+    # (A real os._exit in a process worker gives the same KilledWorker: 8 s, too slow for the suite.)
+    pytest.importorskip("dask.distributed", reason="the dask extra is not installed")
+    from concurrent.futures import BrokenExecutor
+
+    from gevsim.experiments.executors import run_all
+
+    with pytest.raises(BrokenExecutor, match="a Dask worker died running run_one-3f2a"):
+        with make_executor("dask", workers=1, processes=False) as executor:
+            run_all(_killed, [((0,), {})], executor=executor)
