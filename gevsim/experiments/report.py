@@ -274,13 +274,20 @@ def write_maps(folder: Path, study: Study, out: Path, rows: list[dict]) -> dict[
 
 
 def write_study_outputs(out: str | Path, study: Study, rows: list[dict]) -> Path:
-    """results.csv/json, maps.npz, figures, report.md and config.toml, staged then moved in next to ``runs/``."""
+    """results.csv/json, maps.npz, figures, report.md and config.toml, staged then moved in next to ``runs/``
+    (under the study folder's lock: what replaces an earlier report is in its mark, :func:`gevsim.io.exclusive`)."""
+    from gevsim.io import exclusive
+
+    with exclusive(out, what="study", kind="study"):
+        return _write_study_outputs(Path(out), study, rows)
+
+
+def _write_study_outputs(out: Path, study: Study, rows: list[dict]) -> Path:
     import os
 
     from gevsim.io import Staged
     from gevsim.plots import _pyplot
 
-    out = Path(out)
     assert all(row["id"] == run_id(study, p) for row, p in zip(rows, study.runs()))
     staged = Staged(out / "outputs-partial", folder=True)  # locked while it exists; a killed run's is swept
     stage = staged.path

@@ -18,7 +18,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from gevsim.errors import ConfigError
-from gevsim.io import ownership
+from gevsim.io import mark, ownership
 from gevsim.io.staging import (  # noqa: F401 (re-exported: they lived here)
     _STAGE,
     GRACE_S,
@@ -38,7 +38,7 @@ from gevsim.io.staging import (  # noqa: F401 (re-exported: they lived here)
 )
 
 _held_lock = threading.Lock()
-_held: dict[str, list] = {}  # folder -> [descriptor, depth]: this process's locks
+_held: dict[str, list] = {}  # folder -> [descriptor, depth, kind]: this process's locks
 
 
 @contextlib.contextmanager
@@ -47,10 +47,11 @@ def atomic_dir(folder: str | os.PathLike, *, kind: str | None = None,
     """Yield an empty staging folder that replaces ``folder`` when the block succeeds.
 
     With ``kind`` (an output the user named: ``render``, ``reconstruction``, ``validation``), replace only
-    a missing or empty folder or an earlier gevsim output of that kind holding nothing else, and none that
-    is or holds one of ``inputs`` (:func:`gevsim.io.ownership.check_folder`, checked again before the
-    swap); the stage gets the mark of that kind (:func:`gevsim.io.ownership.write_mark`) before it
-    replaces the folder. ``kind`` None (a folder inside an output gevsim owns) replaces whatever is there.
+    a missing or empty folder or an earlier gevsim output of that kind holding exactly what its mark
+    records, and none that is or holds one of ``inputs`` (:func:`gevsim.io.ownership.check_folder`, checked
+    again before the swap); the stage gets the mark of that kind, recording every file and folder written
+    in it (:func:`gevsim.io.mark.write_mark`), before it replaces the folder. ``kind`` None (a folder
+    inside an output gevsim owns) replaces whatever is there.
     """
     folder = Path(folder)
     if kind is not None:
@@ -59,7 +60,7 @@ def atomic_dir(folder: str | os.PathLike, *, kind: str | None = None,
     with _staged(folder, folder=True) as stage:
         yield stage
         if kind is not None:
-            ownership.write_mark(stage, kind)
+            mark.write_mark(stage, kind)
             ownership.check_folder(folder, kind, inputs=inputs)
 
 
@@ -91,11 +92,16 @@ def exclusive(folder: str | os.PathLike, *, what: str = "run", kind: str | None 
     included, so nothing needs cleaning up. The lock file is never followed through a link.
 
     With ``kind`` (``study``, ``dataset``), the folder must be missing, empty or an earlier gevsim output
-    of that kind (:func:`gevsim.io.ownership.check_folder`, before anything is created), and gets its mark.
+    of that kind whose files are what its mark records (:func:`gevsim.io.ownership.check_folder`, before
+    anything is created, and again under the lock). Its mark is open while the lock is held
+    (:func:`gevsim.io.mark.open_mark`) and records every file and folder there when the outermost block
+    ends without an error (:func:`gevsim.io.mark.write_mark`); a run that fails or is killed leaves it open.
     """
     folder = Path(folder)
     if kind is not None and os.path.realpath(folder) not in _held:
-        ownership.check_folder(folder, kind)
+        found = mark.read_mark(folder) if folder.is_dir() else None
+        if not (found and found["kind"] == kind and found.get("open") is True):  # one writing now: checked locked
+            ownership.check_folder(folder, kind)
         ownership.sweep_beside(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -128,19 +134,28 @@ def exclusive(folder: str | os.PathLike, *, what: str = "run", kind: str | None 
         try:
             if kind is not None:
                 ownership.check_folder(folder, kind)  # again, now that no other gevsim run can write here
-                if ownership.read_mark(folder) is None:
-                    ownership.write_mark(folder, kind)
+                mark.open_mark(folder, kind)
         except BaseException:
             os.close(fd)
             raise
         with _held_lock:
-            _held[key] = [fd, 1]
+            _held[key] = [fd, 1, kind]
+    ended = False
     try:
         yield folder
+        ended = True
     finally:
         with _held_lock:
             entry = _held[key]
             entry[1] -= 1
             if entry[1] == 0:
                 del _held[key]
+        if entry[1] == 0:
+            try:
+                if ended and entry[2] is not None:
+                    mark.write_mark(folder, entry[2])  # the run ended well: everything here is its own
+            except OSError as exc:  # the mark stays open: the next run still resumes
+                raise ConfigError(f"cannot record what this run wrote in {mark.MARK} ({exc.strerror or exc})",
+                                  source=str(folder)) from None
+            finally:
                 os.close(entry[0])

@@ -1,14 +1,17 @@
-"""Outputs gevsim owns (issue 24): gevsim replaces or writes into only a folder or file it wrote itself,
-of the same kind, and never an input of the same run.
+"""Outputs gevsim owns (issues 24 and 36): gevsim replaces or writes into only a folder or file it
+wrote itself, of the same kind, and never an input of the same run.
 
-A folder output carries a small JSON mark, :data:`MARK` (``.gevsim.output``), naming its ``kind``
-(one of :data:`FOLDER_KINDS`), the gevsim version and, for the folders that are replaced whole
-(render, reconstruction, validation), the top-level ``entries`` gevsim wrote there. A folder may
-receive an output of kind K when it is missing or empty, or when it carries the mark of kind K and
-(for a replaced folder) holds nothing beyond the entries the mark lists. A folder written before the
-mark existed is recognised by its layout (:func:`legacy_kind`), so earlier outputs can be replaced
-or resumed. Anything else is refused with one :class:`~gevsim.errors.ConfigError`. The lock file
-and leftover stages (:mod:`gevsim.io.staging`) are gevsim's by name and never count as foreign.
+A folder output carries a mark, :data:`~gevsim.io.mark.MARK` (``.gevsim.output``), recording its
+``kind`` and every file (size and SHA-256) and folder gevsim wrote there (:mod:`gevsim.io.mark`). A
+folder may receive an output of kind K when it is missing or empty, or when it carries the mark of kind
+K and its contents are what the mark records: exactly, for a folder replaced whole (render,
+reconstruction, validation); for a folder written into (study, dataset), every file there recorded and
+unchanged, but for the work in progress of a run that was killed (:func:`gevsim.io.mark.difference`).
+A folder without a mark is never taken for gevsim's, whatever its layout or its ``manifest.json``
+says; a mark that does not match its files is refused. Each refusal is one
+:class:`~gevsim.errors.ConfigError` naming the folder and its first foreign, changed or missing entry.
+The lock file and leftover stages (:mod:`gevsim.io.staging`) are gevsim's by name: a folder holding
+only those counts as empty.
 
 A file output (an emulation file, an AEDAT4 export) may replace only a file of its own kind; a
 kind's test lives with its format (``is_ours``). Names from configs that become path parts (light
@@ -17,41 +20,27 @@ groups, methods, sensor names in a report) must pass :func:`check_name`.
 
 from __future__ import annotations
 
-import contextlib
-import json
 import os
 import re
 import stat
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-import gevsim
 from gevsim.errors import ConfigError
-from gevsim.io.staging import _STAGE, LOCK_NAME, MANIFEST, atomic_write_text, sweep_stale
+from gevsim.io.mark import (  # noqa: F401 (re-exported: they lived here)
+    FOLDER_KINDS,
+    MARK,
+    REPLACED_KINDS,
+    RESUMED_KINDS,
+    difference,
+    read_mark,
+    write_mark,
+)
+from gevsim.io.staging import _STAGE, LOCK_NAME, sweep_stale
 
-#: The mark of a folder gevsim wrote (JSON: kind, gevsim version, entries).
-MARK = ".gevsim.output"
-#: Folder outputs replaced whole (their mark lists what they hold) and those written into, resumably.
-REPLACED_KINDS = ("render", "reconstruction", "validation")
-RESUMED_KINDS = ("study", "dataset")
-FOLDER_KINDS = REPLACED_KINDS + RESUMED_KINDS
 #: A name that becomes one path part: letters, digits, ``_``, ``.``, ``-``; no leading ``.`` or ``-``.
 NAME_MAX = 64
 _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
-_MARK_MAX_BYTES = 1 << 16
-
-# What each kind wrote before the mark existed (top-level names, and the manifest keys it always has).
-_RUN_ID = re.compile(r"[0-9a-f]{16}")  # a study's runs/<id>
-_SHARD = re.compile(r"seq_[0-9]{5,}\.(json|h5)")  # a dataset's shards/seq_NNNNN.*
-# Top-level names of a study (runs, its cache, results, report, plots) and of a dataset folder.
-_LEGACY_STUDY = re.compile(r"runs|render-cache|config\.toml|report\.md|results\.(csv|json)|maps\.npz|[a-z0-9_]+\.png")
-_LEGACY_DATASET = re.compile(r"shards|evreal|dataset\.json|render-cache")
-_LEGACY_FILES = {
-    "render": ({"basis", "frames", MANIFEST, "contact_sheet.png", "waveform.png"},
-               {"gevsim", "scene", "light_groups", "poses"}),
-    "reconstruction": ({"frames", MANIFEST, "metrics.csv", "metrics.json", "side_by_side.png"},
-                       {"gevsim", "source", "methods", "tone_map"}),
-}
 
 
 def check_name(name: object, *, source: str | None = None, key: str | None = None) -> str:
@@ -63,86 +52,15 @@ def check_name(name: object, *, source: str | None = None, key: str | None = Non
     return name
 
 
-def read_mark(folder: str | os.PathLike) -> dict | None:
-    """The mark of ``folder`` (a dict with a string ``kind``), or None where it has none or a bad one."""
-    path = Path(folder) / MARK
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
-    except OSError:
-        return None
-    with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return None
-        data = fh.read(_MARK_MAX_BYTES + 1)
-    with contextlib.suppress(ValueError):
-        mark = json.loads(data) if len(data) <= _MARK_MAX_BYTES else None
-        if isinstance(mark, dict) and isinstance(mark.get("kind"), str):
-            return mark
-    return None
-
-
-def write_mark(folder: str | os.PathLike, kind: str) -> None:
-    """Mark ``folder`` as a gevsim output of ``kind``; a replaced kind's mark lists the folder's entries."""
-    if kind not in FOLDER_KINDS:
-        raise ValueError(f"kind must be one of {', '.join(FOLDER_KINDS)}, got {kind!r}")
-    mark: dict = {"kind": kind, "gevsim": gevsim.__version__}
-    if kind in REPLACED_KINDS:
-        mark["entries"] = sorted(_entries(folder))
-    atomic_write_text(Path(folder) / MARK, json.dumps(mark, indent=1) + "\n")
-
-
-def _entries(folder: str | os.PathLike) -> set[str]:
-    """Top-level names of ``folder`` except the mark, the lock file and leftover stages."""
-    return {n for n in os.listdir(folder) if n not in (MARK, LOCK_NAME) and not _STAGE.match(n)}
-
-
-def legacy_kind(folder: str | os.PathLike, names: Iterable[str] | None = None) -> str | None:
-    """The kind of an unmarked folder that an earlier gevsim wrote, judged by its layout; None if none fits.
-
-    render, reconstruction: only the names that kind writes, and a ``manifest.json`` with its keys;
-    validation: ``report.md`` and sensor folders that each hold ``results.json``; study: a ``runs``
-    folder of run ids; dataset: a ``shards`` folder of ``seq_NNNNN`` files or a ``dataset.json`` with
-    its keys (neither with a ``manifest.json``).
-    """
-    folder = Path(folder)
-    names = set(_entries(folder) if names is None else names)
-    for kind, (allowed, keys) in _LEGACY_FILES.items():
-        if MANIFEST in names and names <= allowed:
-            manifest = _small_json(folder / MANIFEST)
-            if isinstance(manifest, dict) and keys <= manifest.keys():
-                return kind
-    if MANIFEST in names:
-        return None
-    sensors = names - {"report.md"}
-    if "report.md" in names and sensors and all((folder / n / "results.json").is_file() for n in sensors):
-        return "validation"
-    if all(_LEGACY_STUDY.fullmatch(n) for n in names) and _only(folder / "runs", _RUN_ID):
-        return "study"
-    record = _small_json(folder / "dataset.json")
-    if all(_LEGACY_DATASET.fullmatch(n) for n in names) and (_only(folder / "shards", _SHARD) or (
-            isinstance(record, dict) and {"gevsim_version", "sequences"} <= record.keys())):
-        return "dataset"
-    return None
-
-
-def _only(folder: Path, pattern: re.Pattern) -> bool:
-    """Whether ``folder`` is a folder (not a link) holding at least one entry that matches ``pattern``, and
-    nothing else but stages."""
-    try:
-        entries = [] if folder.is_symlink() else os.listdir(folder)
-    except OSError:
-        return False
-    return any(pattern.fullmatch(n) for n in entries) and all(pattern.fullmatch(n) or _STAGE.match(n)
-                                                               for n in entries)
-
-
-def _small_json(path: Path) -> object:
-    try:
-        if not path.is_file() or path.stat().st_size > 1 << 26:
-            return None
-        return json.loads(path.read_bytes())
-    except (OSError, ValueError):
-        return None
+def _entries(folder: Path) -> set[str]:
+    """Top-level names of ``folder`` but what is gevsim's by name: the lock file (a plain file, not a
+    link or a folder) and leftover stages."""
+    names = set()
+    for entry in os.scandir(folder):
+        if entry.name == LOCK_NAME and entry.is_file(follow_symlinks=False) or _STAGE.match(entry.name):
+            continue
+        names.add(entry.name)
+    return names
 
 
 def _listing(names: Iterable[str], limit: int = 3) -> str:
@@ -164,27 +82,23 @@ def check_folder(folder: str | os.PathLike, kind: str, *, inputs: Iterable[str |
         raise ConfigError("exists and is not a folder; choose another output folder", source=src)
     try:
         names = _entries(folder)
+        mark = read_mark(folder)
+        if mark is None:
+            if names:
+                raise ConfigError(f"holds files gevsim did not write ({_listing(names)}) and no gevsim mark ({MARK}): "
+                                  "gevsim replaces or writes into only folders it marked as its own; remove it or "
+                                  "choose another output folder", source=src)
+            return
+        if mark["kind"] != kind:
+            raise ConfigError(f"holds a gevsim {mark['kind']} output, not a {kind} output; choose another output "
+                              "folder", source=src)
+        why = difference(folder, mark, kind)
     except OSError as exc:
         raise ConfigError(f"cannot read this folder ({exc.strerror or exc})", source=src) from None
-    mark = read_mark(folder)
-    if mark is None:
-        if not names:
-            return
-        found = legacy_kind(folder, names)
-        if found is None:
-            raise ConfigError(f"holds files gevsim did not write ({_listing(names)}); choose another output "
-                              "folder", source=src)
-    else:
-        found = mark["kind"]
-    if found != kind:
-        raise ConfigError(f"holds a gevsim {found} output, not a {kind} output; choose another output folder",
-                          source=src)
-    if mark is not None and kind in REPLACED_KINDS:
-        entries = mark.get("entries")
-        extra = names - set(entries if isinstance(entries, list) else [])
-        if extra:
-            raise ConfigError(f"holds files gevsim did not write ({_listing(extra)}) beside its {kind} output; "
-                              "choose another output folder", source=src)
+    if why is not None:
+        verb = "replaces" if kind in REPLACED_KINDS else "writes into"
+        raise ConfigError(f"{why}; gevsim {verb} a {kind} folder only while it holds what gevsim wrote there: move "
+                          "it out or choose another output folder", source=src)
 
 
 def check_inputs_outside(out: Path, inputs: Iterable[str | os.PathLike | None]) -> None:

@@ -1,12 +1,13 @@
 """Issue 24, outputs we own (#4, #5, #6, #14, #20): gevsim replaces or writes into only a folder or file it
 wrote, of the same kind; an output is never one of the run's inputs; names from configs cannot leave the
-output folder; the lock file is never followed through a link. Every refusal is one line, exit 2, and
-leaves what was there untouched."""
+output folder; the lock file is never followed through a link. Issue 36, item 1: ownership by content (the
+mark records every file, its size and digest), no recognition of unmarked folders by their layout. Every
+refusal is one line, exit 2, and leaves what was there untouched."""
 
+import hashlib
 import json
 import os
 import shutil
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -15,7 +16,7 @@ from gevsim import cli
 from gevsim.errors import ConfigError
 from gevsim.io import atomic_dir, exclusive
 from gevsim.io.atomic import GRACE_S, LOCK_NAME
-from gevsim.io.ownership import MARK, check_file, check_folder, check_name, is_event_file, legacy_kind, read_mark
+from gevsim.io.ownership import MARK, check_file, check_folder, check_name, is_event_file, read_mark
 from gevsim.render import load
 
 DATA = Path(__file__).parents[1] / "data"
@@ -26,6 +27,7 @@ def _tree(folder: Path) -> dict:
 
 
 def _refused(argv, capsys, *texts):
+    capsys.readouterr()  # what earlier commands printed
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("gevsim: error: ") and "Traceback" not in err, err
@@ -71,13 +73,17 @@ def test_a_light_group_named_as_a_path_is_refused_at_load(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["card.py", "trav.toml"]
 
 
-def test_replaced_folders_carry_their_kind_and_entries(tmp_path):
+def test_replaced_folders_record_every_file_and_folder(tmp_path):
     out = _render_folder(tmp_path / "r")
     mark = _mark(out)
-    assert mark["kind"] == "render" and mark["entries"] == ["basis", "manifest.json"]
+    assert mark["kind"] == "render" and mark["folders"] == ["basis"]
+    assert mark["files"] == {"manifest.json": [2, hashlib.sha256(b"{}").hexdigest()]}
     with atomic_dir(out, kind="render") as stage:  # an earlier render is replaced
-        (stage / "manifest.json").write_text("{}")
-    assert sorted(os.listdir(out)) == [MARK, "manifest.json"] and _mark(out)["entries"] == ["manifest.json"]
+        (stage / "frames" / "deep").mkdir(parents=True)
+        (stage / "frames" / "deep" / "f.exr").write_bytes(b"12345")
+    assert sorted(os.listdir(out)) == [MARK, "frames"]
+    assert _mark(out)["folders"] == ["frames", "frames/deep"]
+    assert _mark(out)["files"] == {"frames/deep/f.exr": [5, hashlib.sha256(b"12345").hexdigest()]}
     assert sorted(os.listdir(tmp_path)) == ["r"]
 
 
@@ -89,7 +95,9 @@ def test_a_folder_gevsim_did_not_write_is_refused_and_untouched(tmp_path):
     (proj / "notes.txt").write_text("precious")
     before = _tree(proj)
     for kind in ("render", "reconstruction", "validation", "study", "dataset"):
-        with pytest.raises(ConfigError, match=r"proj: holds files gevsim did not write \(manifest.json, notes.txt\)"):
+        with pytest.raises(ConfigError, match=r"proj: holds files gevsim did not write \(manifest.json, notes.txt\) "
+                                              r"and no gevsim mark \(\.gevsim\.output\): gevsim replaces or writes "
+                                              "into only folders it marked as its own; remove it or choose another"):
             check_folder(proj, kind)
     with pytest.raises(ConfigError, match="holds files gevsim did not write"), atomic_dir(proj, kind="render"):
         pass
@@ -122,32 +130,48 @@ def test_an_output_of_another_kind_is_refused(tmp_path):
 def test_a_file_beside_a_marked_output_is_kept(tmp_path):
     rend = _render_folder(tmp_path / "rend")
     (rend / "notes.txt").write_text("mine")
-    with pytest.raises(ConfigError, match=r"holds files gevsim did not write \(notes.txt\) beside its render"), \
+    with pytest.raises(ConfigError, match="rend: notes.txt is a file gevsim did not write; gevsim replaces a "
+                                          "render folder only while it holds what gevsim wrote there"), \
             atomic_dir(rend, kind="render"):
         pass
     assert (rend / "notes.txt").read_text() == "mine"
 
 
-def test_folders_of_earlier_versions_are_recognised_by_their_layout(tmp_path):
-    """Folders written before the mark: a render (manifest keys and only render entries), a study (runs of
-    run ids) and a dataset (shards) stay replaceable or resumable; a look-alike with other files does not."""
-    rend = tmp_path / "rend"
-    (rend / "basis" / "lamp").mkdir(parents=True)
-    (rend / "manifest.json").write_text(json.dumps({"gevsim": "0.1", "scene": "c", "light_groups": [], "poses": []}))
-    study = tmp_path / "study"
-    (study / "runs" / "0123456789abcdef").mkdir(parents=True)
-    (study / "results.json").write_text("[]")
-    data = tmp_path / "data"
-    (data / "shards").mkdir(parents=True)
-    (data / "shards" / "seq_00000.json").write_text("{}")
-    assert [legacy_kind(p) for p in (rend, study, data)] == ["render", "study", "dataset"]
-    with atomic_dir(rend, kind="render") as stage:
-        (stage / "manifest.json").write_text("{}")
-    assert _mark(rend)["kind"] == "render"
-    (tmp_path / "ml" / "runs" / "exp1").mkdir(parents=True)  # a project's own runs/ is no study
-    (tmp_path / "other" / "basis").mkdir(parents=True)
-    (tmp_path / "other" / "manifest.json").write_text(json.dumps({"gevsim": "0.1", "scene": "c"}))
-    assert legacy_kind(tmp_path / "ml") is None and legacy_kind(tmp_path / "other") is None
+def test_unmarked_folders_are_never_recognised_by_their_layout(tmp_path):
+    """Issue 36: folders without a mark were taken for earlier outputs by their shape (a render's manifest
+    keys, a study's runs/, a dataset's shards/, a validation's report.md); none is gevsim's now."""
+    layouts = {"render": {"manifest.json": json.dumps({"gevsim": "0.1", "scene": "c", "light_groups": [],
+                                                       "poses": []}), "basis/lamp/pose_0000.exr": "x"},
+               "study": {"runs/0123456789abcdef/r0.json": "{}", "results.json": "[]", "report.md": "# r"},
+               "dataset": {"shards/seq_00000.json": "{}", "dataset.json": "{}"},
+               "validation": {"report.md": "# r", "davis346/results.json": "{}"}}
+    for kind, files in layouts.items():
+        folder = tmp_path / kind
+        for name, text in files.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text)
+        before = _tree(folder)
+        with pytest.raises(ConfigError, match=f"{kind}: holds files gevsim did not write .* no gevsim mark"):
+            check_folder(folder, kind)
+        assert _tree(folder) == before
+
+
+def test_a_folder_holding_only_gevsim_leftovers_counts_as_empty(tmp_path):
+    """The lock file and stages are gevsim's by name: a folder holding only those may be written; a folder
+    named like the lock file, or a mark that is not one, is not."""
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / LOCK_NAME).write_text("123 study\n")
+    (out / ".r.gevsim-abcd1234.tmp").mkdir()
+    check_folder(out, "render")
+    (out / LOCK_NAME).unlink()
+    (out / LOCK_NAME).mkdir()
+    with pytest.raises(ConfigError, match=r"holds files gevsim did not write \(\.gevsim\.lock\)"):
+        check_folder(out, "render")
+    (out / LOCK_NAME).rmdir()
+    (out / MARK).write_text("not json")
+    with pytest.raises(ConfigError, match=r"holds files gevsim did not write \(\.gevsim\.output\)"):
+        check_folder(out, "render")
 
 
 def test_the_lock_file_is_not_followed(tmp_path):
@@ -188,24 +212,6 @@ def test_render_and_validate_refuse_before_any_work(tmp_path, capsys):
     _refused(["validate", "--sensor", str(mine / "my.toml"), "--quick", "--out", str(mine), "-q"], capsys,
              f"{mine}: holds an input of this run")
     assert sorted(os.listdir(mine)) == ["my.toml"]
-
-
-def test_folders_from_before_the_mark_are_recognised_only_by_their_whole_layout(tmp_path):
-    from gevsim.io.ownership import legacy_kind
-
-    def layout(*names):
-        folder = Path(tempfile.mkdtemp(dir=tmp_path))
-        for name in names:
-            (folder / name).parent.mkdir(parents=True, exist_ok=True)
-            (folder / name).write_text("x") if not name.endswith("/") else (folder / name).mkdir(exist_ok=True)
-        return legacy_kind(folder)
-
-    assert layout("runs/0123456789abcdef/", "report.md", "results.json", "pareto.png") == "study"
-    assert layout("shards/seq_00000.h5", "dataset.json", "evreal/") == "dataset"
-    assert layout("report.md", "davis346/results.json") == "validation"
-    # a project's own folders are not taken for gevsim's (validate or render would replace them whole)
-    assert layout("report.md") is None and layout("runs/") is None
-    assert layout("runs/0123456789abcdef/", "notes.txt") is None and layout("shards/", "thesis.tex") is None
 
 
 def test_reconstruct_refuses_a_render_folder_and_the_folder_holding_its_input(good, tmp_path, capsys):
@@ -261,3 +267,135 @@ def test_a_killed_runs_leftover_is_swept_when_an_output_is_written_beside_it(tmp
     os.utime(left, (left.stat().st_mtime - 10 * GRACE_S,) * 2)
     _render_folder(tmp_path / "r")
     assert sorted(os.listdir(tmp_path)) == ["r"]
+
+
+# Issue 36, "Data loss through ownership": each case is refused with one line, exit 2, and no file is lost.
+def _render(out: Path, cache: Path) -> list[str]:
+    return ["render", str(DATA / "card.toml"), "--out", str(out), "--width", "16", "--height", "12", "--spp", "1",
+            "--cache", str(cache), "-q"]
+
+
+def test_a_second_render_keeps_what_the_user_put_deep_inside_the_first(tmp_path, capsys):
+    """`render --out r` again, after the user put r/basis/notes.txt and r/basis/my_notes/notes.txt into the
+    first render: exit 0 and both files deleted (the mark listed only top-level names). A file gevsim wrote and
+    the user changed (same name, same size) is the user's now."""
+    out, argv = tmp_path / "r", _render(tmp_path / "r", tmp_path / "c")
+    assert cli.main(argv) == 0
+    (out / "basis" / "my_notes").mkdir()
+    (out / "basis" / "my_notes" / "notes.txt").write_text("deep")
+    (out / "basis" / "notes.txt").write_text("mine")
+    before = _tree(out)
+    _refused(argv, capsys, f"{out}: basis/my_notes is a folder gevsim did not write; gevsim replaces a render folder "
+                           "only while it holds what gevsim wrote there: move it out or choose another output folder")
+    shutil.rmtree(out / "basis" / "my_notes")
+    _refused(argv, capsys, "basis/notes.txt is a file gevsim did not write")
+    assert _tree(out) == {k: v for k, v in before.items() if "my_notes" not in k}
+    (out / "basis" / "notes.txt").unlink()
+    exr = next((out / "basis").rglob("*.exr"))
+    data = bytearray(exr.read_bytes())
+    data[-1] ^= 1  # one bit, same size: only the digest sees it
+    exr.write_bytes(bytes(data))
+    _refused(argv, capsys, f"basis/lamp/{exr.name} was changed since gevsim wrote it")
+    assert exr.read_bytes() == bytes(data)
+    exr.unlink()
+    _refused(argv, capsys, f"basis/lamp/{exr.name}, which gevsim wrote, is missing")
+    shutil.rmtree(out)
+    assert cli.main(argv) == 0 and cli.main(argv) == 0  # an untouched render is replaced
+
+
+def test_a_second_reconstruction_keeps_a_note_in_its_frames(good, tmp_path, capsys):
+    out = tmp_path / "rc"
+    argv = ["reconstruct", str(good), "--method", "dct", "--out", str(out), "-q"]
+    assert cli.main(argv) == 0
+    (out / "frames" / "notes.txt").write_text("mine")
+    _refused(argv, capsys, f"{out}: frames/notes.txt is a file gevsim did not write; gevsim replaces a "
+                           "reconstruction folder")
+    assert (out / "frames" / "notes.txt").read_text() == "mine"
+
+
+def test_validate_and_render_refuse_unmarked_look_alikes(tmp_path, capsys):
+    """An old-validation look-alike (report.md, expA/ and expB/ each holding results.json and data.csv) was
+    replaced whole by validate; a folder with a render's manifest.json lost basis/data.bin to render."""
+    user = tmp_path / "user"
+    (user / "report.md").parent.mkdir()
+    (user / "report.md").write_text("# my report")
+    for exp in ("expA", "expB"):
+        (user / exp).mkdir()
+        (user / exp / "results.json").write_text("{}")
+        (user / exp / "data.csv").write_text("1,2\n")
+    before = _tree(user)
+    _refused(["validate", "--sensor", "ideal", "--quick", "--out", str(user), "-q"], capsys,
+             f"{user}: holds files gevsim did not write (expA, expB, report.md) and no gevsim mark")
+    look = tmp_path / "look"
+    (look / "basis").mkdir(parents=True)
+    (look / "basis" / "data.bin").write_bytes(b"\0" * 64)
+    (look / "manifest.json").write_text(json.dumps({"gevsim": "0.1", "scene": "card", "light_groups": ["lamp"],
+                                                    "poses": []}))
+    look_before = _tree(look)
+    _refused(_render(look, tmp_path / "c"), capsys, f"{look}: holds files gevsim did not write (basis, manifest.json)")
+    assert _tree(user) == before and _tree(look) == look_before
+
+
+def test_a_hand_written_mark_is_not_trusted(tmp_path, capsys):
+    """`{"kind": "render", "entries": ["notes.txt"]}` beside a user's notes.txt let render delete it."""
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / MARK).write_text(json.dumps({"kind": "render", "entries": ["notes.txt"]}))
+    (out / "notes.txt").write_text("precious")
+    _refused(_render(out, tmp_path / "c"), capsys, f"{out}: notes.txt is a file its mark (.gevsim.output) does not "
+                                                   "record: the mark records no files")
+    forged = {"kind": "render", "folders": [], "files": {"notes.txt": [8, "0" * 64]}}  # right size, wrong digest
+    (out / MARK).write_text(json.dumps(forged))
+    _refused(_render(out, tmp_path / "c"), capsys, "notes.txt was changed since gevsim wrote it")
+    assert (out / "notes.txt").read_text() == "precious"
+
+
+def _study(folder: Path, files: dict[str, str]) -> None:
+    with exclusive(folder, what="study", kind="study"):
+        for name, text in files.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text)
+
+
+def test_a_study_folder_is_written_into_only_while_it_holds_what_gevsim_wrote(tmp_path):
+    """A study is resumed, not replaced, but its report, figures and runs' work folders are overwritten or
+    deleted by the next run: a note beside them or an edited report is refused first, never lost."""
+    study = tmp_path / "s"
+    _study(study, {"report.md": "# report", "runs/0123456789abcdef/r0.json": "{}"})
+    mark = _mark(study)
+    assert "open" not in mark and set(mark["files"]) == {"report.md", "runs/0123456789abcdef/r0.json"}
+    (study / "runs" / "0123456789abcdef" / "r0.json").unlink()  # a file gevsim wrote may go: the run redoes it
+    _study(study, {"report.md": "# report 2"})
+    (study / "report.md").write_text("# my edits")
+    (study / "runs" / "0123456789abcdef" / "r0").mkdir()
+    (study / "runs" / "0123456789abcdef" / "r0" / "notes.txt").write_text("mine")
+    before = _tree(study)
+    for name in ("report.md", "runs/0123456789abcdef/r0"):
+        with pytest.raises(ConfigError, match=f"s: {name} (was changed since gevsim wrote it|is a folder gevsim did "
+                                              "not write); gevsim writes into a study folder only while"):
+            _study(study, {"report.md": "# report 3"})
+        (study / "report.md").write_text("# report 2")
+    assert _tree(study) == {**before, "report.md": b"# report 2"}
+
+
+def test_a_killed_studys_work_in_progress_is_resumed_and_nothing_else_is_taken(tmp_path):
+    """A run that fails (or is killed) leaves its mark open: what it wrote under runs/ is not recorded, and the
+    rerun resumes it; everything else must still be what the last good run recorded."""
+    study = tmp_path / "s"
+    _study(study, {"report.md": "# report"})
+    with pytest.raises(RuntimeError), exclusive(study, what="study", kind="study"):
+        (study / "runs" / "0123456789abcdef").mkdir(parents=True)
+        (study / "runs" / "0123456789abcdef" / "r0.npz").write_bytes(b"half")
+        raise RuntimeError("killed")
+    assert _mark(study)["open"] is True and "runs/0123456789abcdef/r0.npz" not in _mark(study)["files"]
+    (study / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="notes.txt is a file gevsim did not write"):
+        _study(study, {})
+    (study / "notes.txt").unlink()
+    _study(study, {"runs/0123456789abcdef/r0.json": "{}"})  # resumed
+    assert "open" not in _mark(study) and "runs/0123456789abcdef/r0.npz" in _mark(study)["files"]
+    old = tmp_path / "old"  # a mark from before issue 36 records no files: not trusted
+    _study(old, {"report.md": "# report"})
+    (old / MARK).write_text(json.dumps({"kind": "study", "gevsim": "0.1.0"}))
+    with pytest.raises(ConfigError, match="old: report.md is a file its mark .* does not record"):
+        _study(old, {})
