@@ -85,3 +85,84 @@ def test_evreal_frames(tmp_path, rng):
     export_evreal(tmp_path / "bare", two_events, None, None, width=6, height=4)
     with pytest.raises(ConfigError, match="no ground-truth images"):
         load_evreal_frames(tmp_path / "bare")
+
+
+def _gray_picture():
+    """Every 8-bit gray value once (16x16), in the four ways a gray picture is saved: L, RGB, RGBA, palette."""
+    from PIL import Image
+
+    img = Image.fromarray(np.arange(256, dtype=np.uint8).reshape(16, 16), "L")
+    return {mode: img.convert(mode) for mode in ("L", "RGB", "RGBA", "P")}
+
+
+def test_gray_rgb_rgba_and_palette_pictures_load_as_exactly_their_gray_values(tmp_path):
+    # issue 36: the float Rec.601 sum of R = G = B = v is not always v, which moved gradient events
+    want = np.arange(256).reshape(16, 16) / 255.0
+    for mode, img in _gray_picture().items():
+        (tmp_path / mode).mkdir()
+        img.save(tmp_path / mode / "f0.png")
+        img.save(tmp_path / mode / "f1.png")
+        assert iio.imread(tmp_path / mode / "f0.png").ndim == (2 if mode == "L" else 3)
+        frames, _ = load_frame_folder(tmp_path / mode, fps=10)
+        np.testing.assert_array_equal(frames[0], want, err_msg=mode)
+        np.testing.assert_array_equal(frames[1], want, err_msg=mode)
+
+
+def test_colour_pixels_beside_gray_ones_keep_rec601_luma(tmp_path):
+    rgb = np.zeros((2, 2, 3), np.uint8)
+    rgb[0, 0] = (51, 51, 51)
+    rgb[1, 1] = (255, 0, 0)
+    iio.imwrite(tmp_path / "a.png", rgb)
+    frames, _ = load_frame_folder(tmp_path, fps=1)
+    assert frames[0, 0, 0] == 51 / 255 and frames[0, 0, 1] == 0.0
+    assert frames[0, 1, 1] == pytest.approx(0.299)
+
+
+@pytest.fixture
+def small_memory(monkeypatch):
+    """Memory for ``frames`` frames of 8x8 px (at FRAME_PX_BYTES a pixel), and a count of decoded frames."""
+    from gevsim import _resources
+    from gevsim.io import frames as loaders
+    from gevsim.resources import FRAME_PX_BYTES
+
+    decoded = []
+    to_gray = loaders._to_gray
+
+    def counting(img, **kw):
+        decoded.append(img.shape)
+        return to_gray(img, **kw)
+
+    def allow(frames):
+        budget = frames * 64 * FRAME_PX_BYTES
+        monkeypatch.setattr(_resources, "usable_memory", lambda: (budget, "this machine has"))
+
+    monkeypatch.setattr(loaders, "_to_gray", counting)
+    return allow, decoded
+
+
+def test_a_video_too_big_for_memory_is_refused_from_its_header_before_decoding(tmp_path, small_memory):
+    pytest.importorskip("imageio_ffmpeg", reason="MP4 needs imageio-ffmpeg (plot extra)")
+    allow, decoded = small_memory
+    iio.imwrite(tmp_path / "v.mp4", np.zeros((10, 8, 8), np.uint8), fps=10, macro_block_size=1)
+    allow(9)
+    with pytest.raises(ConfigError, match=r"v\.mp4: the 10 frames of 8x8 px its metadata states need"):
+        load_video(tmp_path / "v.mp4")
+    assert decoded == []  # refused from the header alone
+    allow(10)
+    frames, t = load_video(tmp_path / "v.mp4")
+    assert frames.shape == (10, 8, 8) and frames.dtype == np.float64 and len(decoded) == 10
+    np.testing.assert_allclose(t, np.arange(10) / 10)
+
+
+def test_a_video_without_a_frame_count_stops_decoding_at_the_memory_budget(tmp_path, small_memory):
+    allow, decoded = small_memory
+    video = np.zeros((40, 8, 8), np.uint8)
+    video[::2] = 255  # every frame differs from the last: the GIF keeps all 40
+    iio.imwrite(tmp_path / "v.gif", video, loop=0)
+    allow(20)
+    with pytest.raises(ConfigError, match=r"v\.gif: the first 21 frames of 8x8 px \(decoding stopped there"):
+        load_video(tmp_path / "v.gif", fps=10)
+    assert len(decoded) == 21  # not one frame more
+    allow(40)
+    frames, _ = load_video(tmp_path / "v.gif", fps=10)
+    np.testing.assert_array_equal(frames, video / 255.0)
