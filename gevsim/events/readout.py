@@ -121,16 +121,39 @@ class Latency:
         return {}
 
 
+@njit(cache=True)
+def _bucket(periods, counts, tokens, last, rate):
+    """Each busy period's quota from a token bucket of ``rate`` tokens per period holding at most
+    ``rate + 1`` (see :class:`RateController`); returns the quotas and the bucket and period after the last."""
+    quota = np.empty(len(periods), np.int64)
+    for j in range(len(periods)):
+        idle = periods[j] - last  # periods since the last busy one, this one included
+        tokens = min(tokens + rate * idle, rate + 1.0) if idle < 2**40 else rate  # the first: one period's
+        quota[j] = min(counts[j], np.int64(math.floor(tokens)))
+        tokens -= quota[j]
+        last = periods[j]
+    return quota, tokens, last
+
+
 class RateController:
     """The on-chip event-rate controller (Prophesee ESP "ERC": it keeps the event rate below a target by
     dropping events; a :data:`READOUT_STAGES` entry): in each reference period [k T, (k + 1) T) holding
-    n > N = floor(target T) events, N of them are kept, spread evenly over the period's events (the i-th
-    kept when floor((i + 1) N / n) > floor(i N / n)). A period is decided once every event in it is known."""
+    n > N_k events, N_k of them are kept, spread evenly over the period's events (the i-th kept when
+    floor((i + 1) N_k / n) > floor(i N_k / n)). A period is decided once every event in it is known.
+
+    The quota is a token bucket: each period adds r = target x T tokens, a period may send floor(tokens)
+    events, and what it sends is taken off; the bucket holds at most r + 1 tokens, so the fraction of r
+    carries over (a quota of 0.13 events per period sends one event in every 7-8 busy periods, where
+    flooring it would send none) and an idle stretch buys at most one extra event; the first period gets
+    r. Over busy periods
+    the delivered rate is the target to within one event (issue 36)."""
 
     def __init__(self, params: ReadoutParams, *, key: int, shape: tuple[int, int] | None):
         self.params = params
         self.held: np.ndarray | None = None
         self.dropped = 0
+        self.tokens = 0.0  # the bucket after the last decided period
+        self.last_period = np.int64(-(2**62))  # that period's index (none yet)
 
     def process(self, events: np.ndarray, horizon_us: float | None, first: int) -> tuple[np.ndarray, float | None]:
         p = self.params
@@ -147,9 +170,11 @@ class RateController:
             self.held = None
         if len(events) == 0:
             return events, horizon_us
-        allowed = int(math.floor(p.rate_controller_eps * p.rate_controller_period_s))
         starts = np.flatnonzero(np.r_[True, window[1:] != window[:-1]])
         counts = np.diff(np.r_[starts, len(events)])
+        quota, self.tokens, self.last_period = _bucket(window[starts], counts, self.tokens, self.last_period,
+                                                       p.rate_controller_eps * p.rate_controller_period_s)
+        allowed = np.repeat(quota, counts)
         n = np.repeat(counts, counts)
         rank = np.arange(len(events)) - np.repeat(starts, counts)
         keep = (n <= allowed) | ((rank + 1) * allowed // n > rank * allowed // n)

@@ -1,5 +1,7 @@
 """Gradient comparator input offsets and the readout's latency floor and jitter (issue 23)."""
 
+import math
+
 import numpy as np
 import pytest
 from scipy.stats import norm
@@ -122,6 +124,25 @@ def test_rate_controller_keeps_each_period_at_its_target_spread_evenly():
     parts = [r2.process(ev[a:b], until_us=None if b == len(ev) else int(ev["t"][b]))
              for a, b in zip(cuts[:-1], cuts[1:])]
     np.testing.assert_array_equal(np.concatenate(parts), out)
+
+
+@pytest.mark.parametrize("target_eps, rate_eps, n, tolerance", [
+    # IMX636's 200 keps on a 64x48 window: 0.13 per period; a few periods of a Poisson stream are idle.
+    (200e3 * 64 * 48 / (1280 * 720), 5007 / 0.4, 5007, 0.03),
+    (1.0025e6, 4e6, 200_000, 2e-5),  # 200.5 per period, every period busy: flooring lost 1 event in 400
+])
+def test_the_rate_controller_delivers_its_target_at_small_and_fractional_quotas(target_eps, rate_eps, n, tolerance):
+    """Issue 36: flooring the quota of each 200 us period delivered 0 of 5,007 events at a 667 eps target; the
+    token bucket carries the fraction, so a stream above the target delivers the target over its duration."""
+    params = ReadoutParams(rate_controller_eps=target_eps, rate_controller_period_s=200e-6)
+    ev = _requests(n, rate_eps, seed=5)
+    out = Readout(params).process(ev)
+    duration_s = (ev["t"][-1] // 200 + 1) * 200e-6  # whole periods
+    expected = target_eps * duration_s
+    # At 12.5 keps nearly every period is busy: the bucket is spent as it fills; at 4 Meps every period is.
+    assert abs(len(out) - expected) <= max(1.0, tolerance * expected), (len(out), expected)
+    per_period = np.bincount(out["t"] // 200)
+    assert per_period.max() <= math.floor(target_eps * 200e-6) + 1  # never more than r + 1 in one period
 
 
 def test_the_chip_share_scales_the_rate_controller_too():
