@@ -17,6 +17,7 @@ from gevsim.experiments.dataset import finished, generate, load_dataset_config, 
 from gevsim.experiments.executors import make_executor
 from gevsim.io import EventReader, import_evreal
 from gevsim.io.evreal import EVENT_FILES, IMAGE_FILES, METADATA
+from gevsim.io.mark import open_mark
 
 DATA = Path(__file__).parents[1] / "data"
 N = 3
@@ -127,8 +128,9 @@ def test_resume_recomputes_only_what_is_not_finished(reference, tmp_path):
     assert stamp(0) == before[0] and stamp(2) == before[2] and stamp(1) != before[1]
     assert_same_shard(shard(ref, 1), shard(out, 1))
 
-    # a killed run: shard without marker, plus a writer's leftover temp file
+    # a killed run: shard without marker, plus a writer's leftover temp file, and the mark left open
     marker(out, 2).unlink()
+    open_mark(out, "dataset")
     leftover = out / "shards" / ".seq_00002.h5.x1y2z3.tmp"
     leftover.write_bytes(b"partial")
     assert finished(config, out, 2) is None and finished(config, out, 0) is not None
