@@ -14,23 +14,31 @@ bar shows where the window lies in the file:
 
 ``.png`` writes a strip of up to :data:`STRIP_ROWS` windows (one under the other); ``.gif`` an
 animation of every window at ``fps``; ``.mp4`` the same through imageio's ffmpeg plugin
-(``imageio-ffmpeg``), refused with a clear message where it is not installed.
+(``imageio-ffmpeg``), refused with a clear message where it is not installed. Each window is written
+as soon as it is drawn (:mod:`gevsim.view_writer`): memory holds one window, never the whole view;
+more than :data:`MAX_FRAMES` windows, and times or rates out of range, are refused before any work.
 """
 
 from __future__ import annotations
 
+import functools
 import importlib.util
+import math
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from gevsim.errors import ConfigError, suggest
 from gevsim.io.atomic import atomic_path
+from gevsim.io.checks import MAX_T_END_US
 from gevsim.io.hdf5 import EventReader
 from gevsim.io.ownership import check_file
+from gevsim.view_writer import MARK, VIDEO_MIN_WIDTH, abandon, check_fps, is_ours, open_writer, video_frames
 
-__all__ = ["render_windows", "view"]
+__all__ = ["MARK", "MAX_FRAMES", "VIDEO_MIN_WIDTH", "ms_to_us", "render_windows", "video_frames", "view",
+           "window_count"]
 
 #: Events at a pixel at which its colour saturates.
 SATURATE = 3
@@ -45,8 +53,12 @@ MAX_SCALE = 16
 GAP_PX, BAR_PX = 4, 5
 #: Windows in a PNG strip at most.
 STRIP_ROWS = 8
-#: What marks a picture as written by `gevsim view` (PNG Software text, GIF comment).
-MARK = "gevsim view"
+#: Windows one view draws at most, unless ``max_frames`` (``--max-frames``) says more: 10,000 frames are
+#: 17 minutes of animation at the default 10 fps and some minutes of drawing, more than anyone watches
+#: window by window; a count past it is almost always the default 1 ms window left on a long file (a
+#: day-long file is 86,400,000 of them, days of drawing), so it is refused before any work, naming
+#: the flags that change it.
+MAX_FRAMES = 10_000
 _ON, _OFF, _BACK = np.array([70, 140, 255]), np.array([255, 80, 60]), np.array([24, 24, 24])
 _TEXT, _TIME, _STRIP = (230, 230, 230), (255, 200, 90), (40, 40, 40)
 
@@ -101,6 +113,7 @@ def stream_title(stream: str) -> str:
     return next((e.label for e in EMULATORS.values() if e.stream == stream), stream)
 
 
+@functools.lru_cache(maxsize=4)
 def _font(size: int):
     from PIL import ImageFont
 
@@ -134,54 +147,114 @@ def _default_streams(streams: list[str]) -> list[str]:
     return known + sorted(s for s in streams if s not in known)
 
 
+def ms_to_us(value: object, flag: str) -> int:
+    """A command-line time in ms (``--window-ms``, ``--start-ms``, ``--end-ms``) as whole microseconds; one
+    that is not a finite number from 0 to a day (the longest recording, :data:`MAX_T_END_US`) is a
+    :class:`ConfigError` naming ``flag``."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) \
+            or not math.isfinite(value) or not 0 <= value <= MAX_T_END_US / 1000:
+        shown = f"{value:g}" if isinstance(value, float | np.floating) else repr(value)
+        raise ConfigError(f"must be a finite number of ms from 0 to {_ms(MAX_T_END_US)} (a day), got {shown}", key=flag)
+    return int(round(float(value) * 1000))
+
+
+def _check_times(window_us: object, start_us: object, end_us: object, max_frames: object) -> None:
+    """The windows' integer arguments, before any work (the keys name the command's flags)."""
+    for value, flag, low in ((window_us, "--window-ms", 1), (start_us, "--start-ms", 0), (end_us, "--end-ms", 0),
+                             (max_frames, "--max-frames", 1)):
+        if value is None and flag == "--end-ms":
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+            wanted = "a whole number of frames >= 1" if flag == "--max-frames" else \
+                f"a whole number of us >= {low}" + (" (0.001 ms)" if low else "")
+            raise ConfigError(f"must be {wanted}, got {value!r}", key=flag)
+        if flag != "--max-frames" and value > MAX_T_END_US:
+            raise ConfigError(f"must be at most a day ({MAX_T_END_US} us), got {value!r} us", key=flag)
+
+
+def _ms(us: int) -> str:
+    """Microseconds as ms for a message: ``86,400,000``, ``0.25``."""
+    return f"{us / 1000:,.3f}".rstrip("0").rstrip(".")
+
+
+def window_count(total_us: int, *, window_us: int, start_us: int = 0, end_us: int | None = None,
+                 max_frames: int = MAX_FRAMES, source: str | None = None) -> int:
+    """How many windows ``[start + k window, start + (k + 1) window)`` cover ``[start_us, end_us)`` (``end_us``
+    None: the file's end ``total_us``; at least one window); more than ``max_frames`` is refused up front
+    with a line saying how many and which flag to change."""
+    end = total_us if end_us is None else end_us
+    if end > total_us:
+        raise ConfigError(f"{_ms(end)} ms is past the file's end ({_ms(total_us)} ms)", source=source,
+                          key="--end-ms")
+    if start_us >= end and (start_us > 0 or end_us is not None):
+        raise ConfigError(f"{_ms(start_us)} ms is not before the end of the view ({_ms(end)} ms"
+                          f"{', the end of the file' if end_us is None else ''})", source=source, key="--start-ms")
+    n = max(1, -(-(end - start_us) // window_us))
+    if n > max_frames:
+        fit = -(-(end - start_us) // max_frames)
+        raise ConfigError(f"{n:,} windows of {_ms(window_us)} ms from {_ms(start_us)} to {_ms(end)} ms are more than "
+                          f"the {max_frames:,} frames a view draws at most: give a longer --window-ms (at least "
+                          f"{_ms(fit)}), a shorter span (--start-ms, --end-ms) or a larger --max-frames", source=source)
+    return n
+
+
+def _pictures(r: EventReader, names: list[str], *, window_us: int, start_us: int, n: int) -> Iterator[np.ndarray]:
+    """The pictures of ``n`` windows of the open file ``r``, one at a time (the caller writes each before the next
+    is drawn)."""
+    shape, total = (r.height, r.width), r.t_end_us
+    truth = r.frames("log_photocurrent") if "log_photocurrent" in r.frame_names else None
+    shown = [stream_title(t) for t in names + (["ground truth"] if truth is not None else [])]
+    k = panel_scale(shape[1])
+    low, high = (np.percentile(truth[0], [1, 99]) if truth is not None else (0.0, 1.0))
+    gap = np.zeros((shape[0] * k, GAP_PX, 3), np.uint8)
+    for i in range(n):
+        a, b = start_us + i * window_us, start_us + (i + 1) * window_us
+        panels = []
+        for s in names:
+            ev = r.read(s, t_start_us=a, t_end_us=b)
+            gradient = "axis" in (ev.dtype.names or ())
+            panels.append(_gradient_panel(ev, shape) if gradient else _brightness_panel(ev, shape))
+        if truth is not None:
+            panels.append(_truth_panel(truth[0], truth[1], b, float(low), float(high)))
+        big = [p.repeat(k, axis=0).repeat(k, axis=1) for p in panels]
+        row = np.concatenate([p for panel in big for p in (panel, gap)][:-1], axis=1)
+        label = header(window_label(a, b), shown, shape[1] * k, row.shape[1])
+        yield np.concatenate([label, row, _time_bar(row.shape[1], a, b, total)], axis=0)
+
+
+def _stream_names(r: EventReader, streams: list[str] | None, source: str) -> list[str]:
+    names = _default_streams(list(r.streams)) if streams is None else streams
+    for s in names:
+        if s not in r.streams:
+            raise ConfigError(f"no stream {s!r}{suggest(s, r.streams)}; streams: {', '.join(r.streams)}",
+                              source=source, key="--streams")
+    return names
+
+
 def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,
                    start_us: int = 0, count: int | None = None) -> tuple[np.ndarray, list[str]]:
     """(N, height, width, 3) uint8 pictures of the windows ``[start + k window, start + (k + 1) window)``
-    of an emulation file, and the panels' names (left to right: the streams, DVS first and then in the
-    emulators' order, and ``ground truth``; each picture shows their human names, :func:`stream_title`)."""
-    if window_us < 1:
-        raise ConfigError(f"the window must be at least 1 us, got {window_us}", key="--window-ms")
+    of an emulation file (``count`` of them, or up to the file's end: at most :data:`MAX_FRAMES`), and the
+    panels' names (left to right: the streams, DVS first and then in the emulators' order, and
+    ``ground truth``; each picture shows their human names, :func:`stream_title`). Holds every picture:
+    :func:`view` writes them one at a time instead."""
+    _check_times(window_us, start_us, None, count or 1)
     with EventReader(path) as r:
-        names = _default_streams(list(r.streams)) if streams is None else streams
-        for s in names:
-            if s not in r.streams:
-                raise ConfigError(f"no stream {s!r}{suggest(s, r.streams)}; streams: {', '.join(r.streams)}",
-                                  source=str(path), key="--streams")
-        shape, total = (r.height, r.width), r.t_end_us
-        truth = r.frames("log_photocurrent") if "log_photocurrent" in r.frame_names else None
-        n = max(1, (total - start_us + window_us - 1) // window_us)
-        n = min(n, count) if count else n
-        pictures = []
-        titles = names + (["ground truth"] if truth is not None else [])
-        shown = [stream_title(t) for t in titles]
-        k = panel_scale(shape[1])
-        low, high = (np.percentile(truth[0], [1, 99]) if truth is not None else (0.0, 1.0))
-        for i in range(n):
-            a, b = start_us + i * window_us, start_us + (i + 1) * window_us
-            panels = []
-            for s in names:
-                ev = r.read(s, t_start_us=a, t_end_us=b)
-                gradient = "axis" in (ev.dtype.names or ())
-                panels.append(_gradient_panel(ev, shape) if gradient else _brightness_panel(ev, shape))
-            if truth is not None:
-                panels.append(_truth_panel(truth[0], truth[1], b, float(low), float(high)))
-            gap = np.zeros((shape[0] * k, GAP_PX, 3), np.uint8)
-            big = [p.repeat(k, axis=0).repeat(k, axis=1) for p in panels]
-            row = np.concatenate([p for panel in big for p in (panel, gap)][:-1], axis=1)
-            label = header(window_label(a, b), shown, shape[1] * k, row.shape[1])
-            pictures.append(np.concatenate([label, row, _time_bar(row.shape[1], a, b, total)], axis=0))
-    return np.asarray(pictures), titles
-
-
-VIDEO_MIN_WIDTH = 640  # px: MP4 pictures are enlarged by whole pixels to at least this width (video_frames)
+        n = window_count(r.t_end_us, window_us=window_us, start_us=start_us, source=str(path)) \
+            if count is None else count
+        names = _stream_names(r, streams, str(path))
+        titles = names + (["ground truth"] if "log_photocurrent" in r.frame_names else [])
+        return np.asarray(list(_pictures(r, names, window_us=window_us, start_us=start_us, n=n))), titles
 
 
 def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 1000, streams: list[str] | None = None,
-         fps: float = 10.0, start_us: int = 0) -> Path:
-    """Write the event pictures of an emulation file (:func:`render_windows`) to ``out``: ``.png`` (a strip
-    of up to STRIP_ROWS windows), ``.gif`` or ``.mp4`` (every window, ``fps`` a second)."""
-    import imageio.v3 as iio
-
+         fps: float = 10.0, start_us: int = 0, end_us: int | None = None, max_frames: int = MAX_FRAMES) -> Path:
+    """Write the event pictures of an emulation file's windows ``[start + k window, start + (k + 1) window)``
+    from ``start_us`` to ``end_us`` (None: the file's end) to ``out``: ``.png`` (a strip of the first
+    STRIP_ROWS windows), ``.gif`` or ``.mp4`` (every window, ``fps`` a second), each window written as it is
+    drawn (memory: one window and the encoder). More than ``max_frames`` windows are refused before any
+    work (see :data:`MAX_FRAMES`), as are times, counts and rates out of range (:class:`ConfigError` naming
+    the command's flag)."""
     out = Path(out)
     kind = out.suffix.lower()
     if kind not in (".png", ".gif", ".mp4"):
@@ -189,54 +262,21 @@ def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 10
     if kind == ".mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
         raise ConfigError("writing .mp4 needs imageio's ffmpeg plugin: pip install imageio-ffmpeg (or write a .gif)",
                           source=str(out))
-    if not fps > 0:
-        raise ConfigError(f"fps must be > 0, got {fps}", key="--fps")
-    check_file(out, "picture", _is_ours, inputs=[path])  # replaces only an earlier `gevsim view` picture
-    pictures, _ = render_windows(path, window_us=window_us, streams=streams, start_us=start_us,
-                                 count=STRIP_ROWS if kind == ".png" else None)
-    from PIL import Image, PngImagePlugin
-
-    with atomic_path(out) as tmp:
-        if kind == ".png":
-            info = PngImagePlugin.PngInfo()
-            info.add_text("Software", MARK)
-            Image.fromarray(np.concatenate(list(pictures), axis=0)).save(tmp, format="PNG", pnginfo=info)
-        elif kind == ".gif":
-            frames = [Image.fromarray(p) for p in pictures]
-            frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=1000.0 / fps,
-                           loop=0, comment=MARK.encode())
-        else:
-            video, _ = video_frames(pictures)
-            iio.imwrite(tmp, video, extension=".mp4", fps=fps, macro_block_size=1,
-                        output_params=["-metadata", f"comment={MARK}"])
+    fps = check_fps(fps, kind)
+    _check_times(window_us, start_us, end_us, max_frames)
+    check_file(out, "picture", is_ours, inputs=[path])  # replaces only an earlier `gevsim view` picture
+    with EventReader(path) as r:
+        n = window_count(r.t_end_us, window_us=window_us, start_us=start_us, end_us=end_us, max_frames=max_frames,
+                         source=str(path))
+        names = _stream_names(r, streams, str(path))
+        with atomic_path(out) as tmp:
+            writer = open_writer(tmp, kind, fps)
+            try:
+                for picture in _pictures(r, names, window_us=window_us, start_us=start_us,
+                                         n=min(n, STRIP_ROWS) if kind == ".png" else n):
+                    writer.append(picture)
+            except BaseException:
+                abandon(writer)
+                raise
+            writer.close()
     return out
-
-
-def video_frames(pictures: np.ndarray) -> tuple[np.ndarray, int]:
-    """The pictures as an H.264 encoder takes them without blurring single-pixel events: each picture
-    pixel repeated ``k`` x ``k`` times (the least ``k`` <= 8 making them VIDEO_MIN_WIDTH wide; 4:2:0
-    chroma then never mixes two pixels' colours), padded at the right and bottom to a multiple of 16
-    (the encoder's macroblock; it would otherwise rescale). Returns the frames and ``k``."""
-    n, h, w, _ = pictures.shape
-    k = int(min(8, max(1, -(-VIDEO_MIN_WIDTH // w))))
-    big = pictures.repeat(k, axis=1).repeat(k, axis=2)
-    frames = np.zeros((n, -(-h * k // 16) * 16, -(-w * k // 16) * 16, 3), np.uint8)
-    frames[:, :h * k, :w * k] = big
-    return frames, k
-
-
-def _is_ours(path: Path) -> bool:
-    """A picture `gevsim view` wrote (its Software text or comment names gevsim)."""
-    if path.suffix.lower() == ".mp4":  # the comment atom sits near one end of the file
-        with open(path, "rb") as fh:
-            head = fh.read(65536)
-            fh.seek(max(0, path.stat().st_size - 65536))
-            return MARK.encode() in head + fh.read()
-    try:
-        from PIL import Image
-
-        with Image.open(path) as img:
-            tag = img.info.get("Software") or img.info.get("comment") or b""
-    except Exception:
-        return False
-    return (tag.decode(errors="replace") if isinstance(tag, bytes) else str(tag)) == MARK

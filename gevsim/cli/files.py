@@ -49,11 +49,13 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from gevsim.view import view
+    from gevsim.view import MAX_FRAMES, ms_to_us, view
 
     streams = [s for part in args.streams or [] for s in part.split(",") if s] or None
-    out = view(args.file, args.out, window_us=int(round(args.window_ms * 1000)), streams=streams, fps=args.fps,
-               start_us=int(round(args.start_ms * 1000)))
+    end_us = None if args.end_ms is None else ms_to_us(args.end_ms, "--end-ms")
+    out = view(args.file, args.out, window_us=ms_to_us(args.window_ms, "--window-ms"), streams=streams,
+               fps=args.fps, start_us=ms_to_us(args.start_ms, "--start-ms"), end_us=end_us,
+               max_frames=MAX_FRAMES if args.max_frames is None else args.max_frames)
     print(f"gevsim: wrote {out}", file=sys.stderr)
     return 0
 

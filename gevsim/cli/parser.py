@@ -148,10 +148,16 @@ def _view(sub: Any) -> None:
     v.add_argument("file", help="an emulation file (.h5)")
     v.add_argument("--out", required=True, help="a .png (up to 8 windows, one under the other), .gif or .mp4 "
                    "(every window; .mp4 needs imageio-ffmpeg); replaces only an earlier `gevsim view` picture")
+    # Numbers are checked by gevsim.view (finite, in range, fps within what the format stores): one error line.
     v.add_argument("--window-ms", type=float, default=1.0, help="time window of one picture, ms (default 1)")
     v.add_argument("--start-ms", type=float, default=0.0, help="where the first window starts, ms (default 0)")
+    v.add_argument("--end-ms", type=float, help="where the last window ends, ms (default: the file's end)")
     v.add_argument("--streams", action="append", metavar="NAMES", help="streams to draw (default: all)")
-    v.add_argument("--fps", type=float, default=10.0, help="animation frames per second (default 10)")
+    v.add_argument("--fps", type=float, default=10.0, help="animation frames per second (default 10; "
+                   ".gif 0.01 to 100, .mp4 0.01 to 1000)")
+    v.add_argument("--max-frames", type=int, metavar="N",
+                   help="refuse a view of more windows than this (default 10000: a longer --window-ms, "
+                   "or --start-ms/--end-ms, fit a long file)")
 
 
 def _dataset(sub: Any) -> None:
