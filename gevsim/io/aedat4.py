@@ -112,6 +112,9 @@ def export_aedat4(path: str | os.PathLike, out: str | os.PathLike, *, streams: l
         mapping = aedat4_streams(r)
         if streams is not None:
             unknown = sorted(set(streams) - set(r.streams))
+            if set(unknown) & r.left_out.keys():  # not a stream's columns: never exported unchecked
+                s = min(set(unknown) & r.left_out.keys())
+                raise ConfigError(f"stream {s!r} is left out: {r.left_out[s]}", source=str(path), key="stream")
             if unknown:
                 raise ConfigError(f"no stream {', '.join(map(repr, unknown))} in the file; it has "
                                   f"{', '.join(r.streams) or 'none'}", source=str(path), key="stream")

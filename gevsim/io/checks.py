@@ -6,9 +6,13 @@ it is used, before any of its events reaches a caller, and each frame stream whe
 
 - root attributes: ``width`` and ``height`` integers in [1, :data:`MAX_SIZE_PX`] (x and y are int16),
   ``t_end_us`` an integer in [0, :data:`MAX_T_END_US`], ``seed`` an integer, texts are text;
-- a stream's ``fields`` attribute names its 1-D numeric columns (``t`` among them), all of one length,
-  fully stored (no unwritten chunk read back as zeros); the standard streams, and any stream with
-  exactly their field names, have the standard dtypes (:mod:`gevsim.events.types`);
+- a stream's ``fields`` attribute names its 1-D numeric columns, all of one length, fully stored (no
+  unwritten chunk read back as zeros), with the dtypes of a brightness (``x y t p``) or gradient
+  (``x y t p axis``) stream (:mod:`gevsim.events.types`). Any group of ``kind`` ``"events"`` is a stream
+  to view and export (issue 36, item 3): one named ``events`` or ``gradient_events``, or whose
+  ``fields`` are exactly a standard stream's names, is checked as one; any other (other columns, no
+  ``p``, no ``fields``) is left out (:func:`left_out`: the reader says so in an INFO line), never
+  passed on unchecked;
 - ``t`` is sorted and within [0, t_end_us]; x in [0, width), y in [0, height); a gradient ``axis`` is
   0 or 1 and its ``p`` +1 or -1; a polarity stored as uint8 is 0 or 1;
 - ``ms_to_idx`` has ``ceil(t_end_us / 1000) + 1`` entries, each the index of the first event at or
@@ -32,7 +36,7 @@ from gevsim.events.types import BRIGHTNESS_DTYPE, GRADIENT_DTYPE, check_events
 from gevsim.timebase import MAX_DURATION_S
 
 __all__ = ["BLOCK", "BOOL_ATTR", "MAX_SIZE_PX", "MAX_T_END_US", "STANDARD", "bounded_int", "check_stream",
-           "read", "read_frames", "text"]
+           "left_out", "read", "read_frames", "text"]
 
 #: Marks a dataset stored as uint8 0/1 that holds a bool field.
 BOOL_ATTR = "numpy_dtype"
@@ -109,20 +113,44 @@ def _column(group: h5py.Group, name: str, source: str, *, integer: bool = False)
     return ds
 
 
+def _field_names(group: h5py.Group) -> list[str] | None:
+    """The ``fields`` attribute of a stream as a list of texts, or None where it is not one."""
+    fields = group.attrs.get("fields")
+    if not isinstance(fields, np.ndarray) or fields.ndim != 1 or not all(isinstance(n, str) for n in fields):
+        return None
+    return [str(n) for n in fields]
+
+
+def _standard_for(name: str, fields: list[str] | None) -> np.dtype | None:
+    """The standard dtype a stream must have: by its name, else by its field names (as a set); None if neither."""
+    return STANDARD.get(name) or next((d for d in STANDARD.values() if fields is not None
+                                       and len(fields) == len(d.names or ()) and set(d.names or ()) == set(fields)),
+                                      None)
+
+
+def left_out(group: h5py.Group) -> str | None:
+    """Why a group of ``kind`` ``"events"`` is not a stream (its columns are not a brightness or gradient
+    stream's), or None for a stream (which :func:`check_stream` checks whole). Reads attributes only."""
+    fields = _field_names(group)
+    if _standard_for(group.name.lstrip("/"), fields) is not None:
+        return None
+    return (f"its columns ('fields' attribute {_show(group.attrs.get('fields'))}) are not those of a brightness "
+            "(x y t p) or gradient (x y t p axis) stream")
+
+
 def stream_dtype(group: h5py.Group, *, source: str) -> np.dtype:
     """The in-memory dtype of a stream, from its ``fields`` attribute and columns, checked."""
-    fields = group.attrs.get("fields")
-    names = [str(n) for n in fields] if isinstance(fields, np.ndarray) and fields.ndim == 1 else []
-    if (not names or any(not isinstance(n, str) for n in fields) or len(set(names)) != len(names)
-            or "t" not in names or "ms_to_idx" in names):
-        raise ConfigError(f"must list the stream's columns, 't' among them, got {_show(fields)}", source=source,
+    names = _field_names(group) or []
+    want = _standard_for(group.name.lstrip("/"), names)
+    if (want is None or not names or len(set(names)) != len(names) or "t" not in names
+            or "ms_to_idx" in names):
+        raise ConfigError(f"must list the stream's columns, those of a brightness (x y t p) or gradient "
+                          f"(x y t p axis) stream, got {_show(group.attrs.get('fields'))}", source=source,
                           key=f"{group.name} attribute 'fields'")
     columns = {name: _column(group, name, source, integer=name == "t") for name in names}
     dtype = np.dtype([(name, np.bool_ if _text(ds.attrs.get(BOOL_ATTR)) == "bool" else ds.dtype)
                       for name, ds in columns.items()])
-    want = STANDARD.get(group.name.lstrip("/")) or next(
-        (d for d in STANDARD.values() if set(d.names or ()) == set(names)), None)
-    if want is not None and dtype != want:
+    if dtype != want:
         raise ConfigError(f"the columns must have dtype {want}, got {dtype}", source=source, key=group.name)
     lengths = {name: ds.shape[0] for name, ds in columns.items()}
     if len(set(lengths.values())) > 1:
@@ -141,7 +169,6 @@ def check_stream(group: h5py.Group, *, shape: tuple[int, int], t_end_us: int, so
         raise ConfigError(f"has {ms_ds.shape[0]} entries, but t_end_us = {t_end_us} needs {n_ms} (one a "
                           f"millisecond)", source=source, key=ms_ds.name)
     counts = np.zeros(n_ms + 1, np.int64)  # counts[k]: events in millisecond k - 1
-    standard = dtype in (BRIGHTNESS_DTYPE, GRADIENT_DTYPE)
     last = 0
     for i0 in range(0, n, BLOCK):
         cols = {name: read(group[name], slice(i0, i0 + BLOCK), source=source) for name in names}
@@ -164,20 +191,13 @@ def check_stream(group: h5py.Group, *, shape: tuple[int, int], t_end_us: int, so
             if dtype[name] == np.bool_ and cols[name].dtype != np.bool_ and np.any(cols[name] > 1):
                 raise ConfigError(f"a polarity stored as 0 or 1 holds {int(cols[name].max())}", source=source,
                                   key=f"{group.name}/{name}")
-        for name, size in (("x", shape[1]), ("y", shape[0])):
-            if not standard and name in names and dtype[name].kind in "iu":
-                v = cols[name]
-                if v.min() < 0 or v.max() >= size:
-                    raise ConfigError(f"holds {int(v[(v < 0) | (v >= size)][0])}, outside [0, {size})",
-                                      source=source, key=f"{group.name}/{name}")
-        if standard:
-            ev = np.empty(len(t), dtype)
-            for name in names:
-                ev[name] = cols[name]
-            try:
-                check_events(ev, name=group.name, shape=shape)
-            except ValueError as exc:
-                raise ConfigError(f"corrupt event data: {exc}", source=source) from None
+        ev = np.empty(len(t), dtype)  # a standard dtype (stream_dtype): the kernels' own check
+        for name in names:
+            ev[name] = cols[name]
+        try:
+            check_events(ev, name=group.name, shape=shape)
+        except ValueError as exc:
+            raise ConfigError(f"corrupt event data: {exc}", source=source) from None
     ms = read(ms_ds, source=source)
     expected = np.cumsum(counts)[:n_ms]
     wrong = np.flatnonzero(ms != expected)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
@@ -12,6 +13,9 @@ from numpy.typing import ArrayLike
 
 from gevsim.errors import ConfigError, suggest
 from gevsim.io import checks
+from gevsim.io.sealed import check_sealed
+
+log = logging.getLogger(__name__)
 
 FORMAT = "gevsim-events-2"
 #: Formats EventReader reads: 1 stored the polarity as an HDF5 bool enum and had no root ms_to_idx.
@@ -22,6 +26,8 @@ WINDOW_EVENTS = 2**20
 
 #: Streams already checked, per file identity (see EventReader); bounded: cleared when it grows past 256 files.
 _CHECKED: dict[tuple, dict[str, np.dtype]] = {}
+#: Streams left out and said so (one INFO line per file version and stream); bounded like _CHECKED.
+_TOLD: set[tuple] = set()
 
 
 def _identity(path: Path) -> tuple | None:
@@ -32,6 +38,8 @@ def _identity(path: Path) -> tuple | None:
         return None
     if len(_CHECKED) > 256:
         _CHECKED.clear()
+    if len(_TOLD) > 1024:
+        _TOLD.clear()
     return (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
 
 
@@ -43,10 +51,15 @@ def _is_text(value: object, expected: str) -> bool:
 class EventReader:
     """Read a complete gevsim HDF5 event file.
 
+    Its streams (:attr:`streams`) are the groups whose ``kind`` is ``"events"`` and whose columns are those
+    of a brightness or gradient stream; any other such group is left out with one INFO line. A stream is
+    checked whole before any of its events is returned (:mod:`gevsim.io.checks`).
+
     Raises
     ------
     ConfigError
-        If ``path`` is missing, not HDF5, not a gevsim file or incomplete.
+        If ``path`` is missing, not HDF5, not a gevsim file, incomplete, or holds data stored outside
+        it (:mod:`gevsim.io.sealed`; checked when it is opened, before any data is read).
     """
 
     def __init__(self, path: str | os.PathLike):
@@ -67,12 +80,19 @@ class EventReader:
         if not isinstance(complete, (bool, np.bool_)) or not complete:
             self._file.close()
             raise ConfigError("incomplete gevsim event file: the writer did not finish", source=src)
+        try:
+            check_sealed(self._file, source=src)
+        except ConfigError:
+            self._file.close()
+            raise
         self._ms_cache: dict[str, np.ndarray] = {}
         # Streams checked whole (gevsim.io.checks), with their dtypes: shared by every reader of this very file
         # (same inode, size and modification time), so a file read again (a reconstruction per method, an
         # export's child, a run's summary) is not checked again.
         self._identity = _identity(self.path)
         self._dtypes: dict[str, np.dtype] = _CHECKED.setdefault(self._identity, {}) if self._identity else {}
+        self._streams: tuple[str, ...] | None = None
+        self._left_out: dict[str, str] = {}
 
     def __enter__(self) -> EventReader:
         return self
@@ -109,15 +129,37 @@ class EventReader:
 
     @property
     def streams(self) -> tuple[str, ...]:
-        """Names of the event streams in the file (sorted)."""
-        return tuple(sorted(k for k, v in self._file.items()
-                            if isinstance(v, h5py.Group) and _is_text(v.attrs.get("kind"), "events")))
+        """Names of the event streams in the file (sorted): groups of ``kind`` ``"events"``, except those
+        left out for their columns (:func:`gevsim.io.checks.left_out`, said once in an INFO line)."""
+        if self._streams is None:
+            kept = []
+            for name, group in self._file.items():
+                if not isinstance(group, h5py.Group) or not _is_text(group.attrs.get("kind"), "events"):
+                    continue
+                why = checks.left_out(group)
+                if why is None:
+                    kept.append(name)
+                    continue
+                self._left_out[name] = why
+                if (self._identity, name) not in _TOLD:
+                    _TOLD.add((self._identity, name))
+                    log.info("%s: stream %r left out: %s", self.path, name, why)
+            self._streams = tuple(sorted(kept))
+        return self._streams
+
+    @property
+    def left_out(self) -> dict[str, str]:
+        """Groups of ``kind`` ``"events"`` that are not streams: name -> why."""
+        _ = self.streams  # sorts the groups into streams and left-out ones
+        return dict(self._left_out)
 
     @property
     def frame_names(self) -> tuple[str, ...]:
         return tuple(sorted(self._file["frames"])) if isinstance(self._file.get("frames"), h5py.Group) else ()
 
     def _stream(self, stream: str) -> h5py.Group:
+        if stream not in self.streams and stream in self._left_out:
+            raise ConfigError(f"stream {stream!r} is left out: {self._left_out[stream]}", source=str(self.path))
         if stream not in self.streams:
             raise ConfigError(f"no event stream {stream!r}{suggest(stream, self.streams)}; "
                               f"streams: {', '.join(self.streams) or 'none'}", source=str(self.path))

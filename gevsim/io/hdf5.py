@@ -9,7 +9,8 @@ Layout (format ``"gevsim-events-2"``)::
     /ms_to_idx             the same dataset (a hard link), where DSEC's tools look for it
     /t_offset              int64 us added to events/t for absolute time (0)
     /gradient_events/{x,y,t,p,axis}, /gradient_events/ms_to_idx
-    /<stream>/...          any other named stream, same layout
+    /<stream>/...          any other named stream, same layout (read back when its columns are those of a
+                           brightness or gradient stream; any other is left out, gevsim.io.checks.left_out)
     /frames/<name>/images  (N, H, W[, C]) and /frames/<name>/t (N,) int64 us
 
 The brightness stream is laid out as DSEC's ``events.h5`` (Gehrig et al., RA-L 2021;
@@ -18,7 +19,8 @@ the root ``ms_to_idx`` and ``t_offset``), so DSEC's slicer and loaders read it a
 Every stream has its own ``ms_to_idx`` with ``ceil(t_end_us / 1000) + 1`` entries.
 Boolean fields (the brightness polarity) are stored as uint8 0/1, not as an HDF5 enum,
 and read back as bool. Every dataset carries ``units`` and ``meaning`` attributes.
-Timestamps must be non-negative. Files of format ``"gevsim-events-1"`` (bool enum
+Timestamps must be non-negative. Every dataset is stored in the file itself (no external storage,
+external link or virtual dataset; the reader refuses them, :mod:`gevsim.io.sealed`). Files of format ``"gevsim-events-1"`` (bool enum
 polarity, no root ``ms_to_idx``) are still read. The file is written under a temporary name beside the
 target and renamed onto it only by a clean :meth:`EventWriter.close`, so a file
 at the target path always carries ``complete = True``.

@@ -164,13 +164,31 @@ def test_export_reads_only_the_windows_that_hold_events(tmp_path, monkeypatch):
 
 
 def test_a_custom_stream_outside_the_sensor_is_refused(tmp_path):
+    ev = np.zeros(2, BRIGHTNESS_DTYPE)  # a stream of another name with a brightness stream's columns is one
+    ev["x"], ev["t"] = [3, 9], [0, 5]
+    with EventWriter(tmp_path / "c.h5", width=8, height=4, config_toml="", seed=0) as w:
+        w.append("custom", ev)
+    with EventReader(tmp_path / "c.h5") as r, pytest.raises(ConfigError, match="outside the 8x4 sensor"):
+        assert r.streams == ("custom",)
+        r.read("custom")
+
+
+def test_a_stream_with_other_columns_is_left_out_with_one_info_line(tmp_path, caplog):
+    # issue 36, item 3: its x, y or p cannot be checked as a stream's, so view and export never see it
     dtype = np.dtype([("x", "<u2"), ("y", "<i4"), ("t", "<i8"), ("w", "<f4")])
     ev = np.zeros(2, dtype)
     ev["x"], ev["t"] = [3, 9], [0, 5]
     with EventWriter(tmp_path / "c.h5", width=8, height=4, config_toml="", seed=0) as w:
         w.append("custom", ev)
-    with EventReader(tmp_path / "c.h5") as r, pytest.raises(ConfigError, match=r"/custom/x: holds 9, outside \[0, 8\)"):
-        r.read("custom")
+        w.append("events", np.zeros(1, BRIGHTNESS_DTYPE))
+    caplog.set_level("INFO", logger="gevsim.io.event_reader")
+    with EventReader(tmp_path / "c.h5") as r:
+        assert r.streams == ("events",) and r.streams == ("events",)
+        assert list(r.left_out) == ["custom"]
+        with pytest.raises(ConfigError, match="'custom' is left out: its columns .* not those of a brightness"):
+            r.read("custom")
+    lines = [rec.getMessage() for rec in caplog.records if "left out" in rec.getMessage()]
+    assert len(lines) == 1 and "'custom'" in lines[0]
 
 
 def test_frame_times_must_increase_when_written(tmp_path):

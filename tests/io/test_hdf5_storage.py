@@ -88,13 +88,19 @@ def test_every_field_dtype_round_trips_across_chunks(tmp_path, streams, backgrou
     path = tmp_path / "ev.h5"
     write(path, streams, background=background, compression=compression)
     with EventReader(path) as r:
+        assert r.streams == ("events", "gradient_events") and list(r.left_out) == ["other_events"]
         for name, ev in streams.items():
+            if name == "other_events":  # not a stream's columns: left out by the reader (issue 36), stored whole
+                continue
             got = r.read(name)
             assert got.dtype == ev.dtype
             np.testing.assert_array_equal(got, ev)
             mid = r.read(name, 10_000, 20_000)
             np.testing.assert_array_equal(mid, ev[(ev["t"] >= 10_000) & (ev["t"] < 20_000)])
     with h5py.File(path, "r") as f:
+        other = streams["other_events"]
+        for field in other.dtype.names:
+            np.testing.assert_array_equal(f["other_events"][field][()], other[field])
         for name in ("events/x", "events/t", "gradient_events/p", "other_events/q", "ms_to_idx"):
             ds = f[name]
             assert ds.compression == compression and ds.shuffle == (ds.dtype.itemsize > 1), name
