@@ -64,6 +64,6 @@ def cmd_export(args: argparse.Namespace) -> int:
     from gevsim.io.exports import export
 
     streams = [s for part in args.stream or [] for s in part.split(",") if s] or None
-    counts = export(args.file, args.out, args.format, streams=streams)
+    counts = export(args.file, args.out, args.format, streams=streams, header=args.header)
     print(f"gevsim: wrote {args.out}: " + ", ".join(f"{k} {v}" for k, v in counts.items()), file=sys.stderr)
     return 0

@@ -139,6 +139,10 @@ def _export(sub: Any) -> None:
     x.add_argument("--out", required=True, help="output file (a folder for evreal; written atomically; replaces "
                    "only an earlier gevsim export of that format, never the input)")
     x.add_argument("--stream", action="append", metavar="NAME", help="streams to export (default: all)")
+    x.add_argument("--header", choices=("gevsim", "e2vid"),
+                   help="text only: the first line; gevsim (default): a '#' comment naming the columns; e2vid: "
+                        "the sensor size 'W H', where E2VID reads it (brightness streams; such a file is never "
+                        "replaced by a later export)")
 
 
 def _view(sub: Any) -> None:

@@ -4,6 +4,9 @@
 - ``text``: one stream, ``t x y p`` a line with t in **seconds** (the community text format of
   ESIM/rpg_dvs_ros, E2VID and EVREAL's tooling; gradient streams add an ``axis`` column); the first
   line is a ``#`` comment, so ``numpy.loadtxt`` and readers that skip one header line both read it.
+  With ``header="e2vid"`` (``--header e2vid``) the first line is the sensor size ``W H``, where E2VID's
+  ``run_reconstruction.py`` reads it (brightness streams only); that file carries no gevsim mark, so it
+  is never replaced by a later export.
 - ``npz``: every stream (or the chosen ones) as a NumPy structured array under its stream name, with
   tonic's fields (``x``, ``y`` int16, ``t`` int64 us, ``p``), and ``width`` and ``height``.
 - ``evreal``: the DVS stream and tone-mapped ground-truth frames as an EVREAL sequence folder
@@ -28,13 +31,19 @@ from gevsim.io.atomic import atomic_path
 from gevsim.io.hdf5 import EventReader
 from gevsim.io.ownership import check_file, check_inputs_outside, sweep_beside
 
-__all__ = ["FORMATS", "export"]
+__all__ = ["FORMATS", "HEADERS", "export"]
+
+#: First lines of the text export: gevsim's ``#`` comment, or E2VID's sensor size ``W H``.
+HEADERS = ("gevsim", "e2vid")
 
 
 def _streams(reader: EventReader, streams: list[str] | None) -> list[str]:
     if streams is None:
         return list(reader.streams)
     for s in streams:
+        if s in reader.left_out:  # its columns are not a stream's: never exported unchecked (issue 36, item 3)
+            raise ConfigError(f"stream {s!r} is left out: {reader.left_out[s]}", source=str(reader.path),
+                              key="--stream")
         if s not in reader.streams:
             raise ConfigError(f"no stream {s!r} in the file{suggest(s, reader.streams)}; it has "
                               f"{', '.join(reader.streams) or 'none'}", source=str(reader.path), key="--stream")
@@ -55,8 +64,10 @@ def _is_gevsim_npz(path: Path) -> bool:
         return False
 
 
-def export_text_file(path: str | os.PathLike, out: Path, streams: list[str] | None) -> dict:
-    """One stream (``events`` unless named) as ``t x y p`` lines, t in seconds."""
+def export_text_file(path: str | os.PathLike, out: Path, streams: list[str] | None, *,
+                     header: str = "gevsim") -> dict:
+    """One stream (``events`` unless named) as ``t x y p`` lines, t in seconds, after a ``header`` line
+    (:data:`HEADERS`)."""
     from gevsim.io.text import export_text
 
     with EventReader(path) as r:
@@ -64,9 +75,12 @@ def export_text_file(path: str | os.PathLike, out: Path, streams: list[str] | No
         if len(chosen) != 1:
             raise ConfigError(f"the text format holds one stream; name it with --stream (streams: "
                               f"{', '.join(r.streams)})", source=str(path), key="--stream")
-        events = r.read(chosen[0])
+        if header == "e2vid" and "axis" in (r.dtype(chosen[0]).names or ()):
+            raise ConfigError(f"E2VID reads brightness events (t x y p); {chosen[0]!r} is a gradient stream",
+                              source=str(path), key="--header")
+        events, size = r.read(chosen[0]), (r.width, r.height)
     check_file(out, "text export", _is_gevsim_text, inputs=[path])
-    export_text(out, events, seconds=True)
+    export_text(out, events, seconds=True, e2vid_size=size if header == "e2vid" else None)
     return {chosen[0]: len(events)}
 
 
@@ -121,11 +135,18 @@ FORMATS: dict[str, Callable[[str | os.PathLike, Path, list[str] | None], dict]] 
 }
 
 
-def export(path: str | os.PathLike, out: str | os.PathLike, fmt: str, *, streams: list[str] | None = None) -> dict:
-    """Write the events of emulation file ``path`` to ``out`` in format ``fmt`` (:data:`FORMATS`)."""
+def export(path: str | os.PathLike, out: str | os.PathLike, fmt: str, *, streams: list[str] | None = None,
+           header: str | None = None) -> dict:
+    """Write the events of emulation file ``path`` to ``out`` in format ``fmt`` (:data:`FORMATS`); ``header``:
+    the text format's first line (:data:`HEADERS`, default ``"gevsim"``)."""
     if fmt not in FORMATS:
         raise ConfigError(f"unknown export format {fmt!r}{suggest(fmt, FORMATS)}; one of {', '.join(FORMATS)}",
                           key="--format")
+    if header is not None and (fmt != "text" or header not in HEADERS):
+        raise ConfigError(f"the text format's header is one of {', '.join(HEADERS)}, got {header!r}"
+                          if fmt == "text" else f"applies to --format text only, not {fmt}", key="--header")
     out = Path(out)
     sweep_beside(out)
+    if fmt == "text":
+        return export_text_file(path, out, streams, header=header or "gevsim")
     return FORMATS[fmt](path, out, streams)

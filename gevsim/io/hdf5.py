@@ -20,10 +20,10 @@ Every stream has its own ``ms_to_idx`` with ``ceil(t_end_us / 1000) + 1`` entrie
 Boolean fields (the brightness polarity) are stored as uint8 0/1, not as an HDF5 enum,
 and read back as bool. Every dataset carries ``units`` and ``meaning`` attributes.
 Timestamps must be non-negative. Every dataset is stored in the file itself (no external storage,
-external link or virtual dataset; the reader refuses them, :mod:`gevsim.io.sealed`). Files of format ``"gevsim-events-1"`` (bool enum
-polarity, no root ``ms_to_idx``) are still read. The file is written under a temporary name beside the
-target and renamed onto it only by a clean :meth:`EventWriter.close`, so a file
-at the target path always carries ``complete = True``.
+external link or virtual dataset; the reader refuses them, :mod:`gevsim.io.sealed`). Files of format
+``"gevsim-events-1"`` (bool enum polarity, no root ``ms_to_idx``) are still read. The file is written
+under a temporary name beside the target and renamed onto it only by a clean :meth:`EventWriter.close`,
+so a file at the target path always carries ``complete = True``.
 
 Storage. The event columns keep their in-memory dtypes, which are already the smallest exact ones for
 the sensors gevsim models (x, y int16; t int64; p, axis one byte each). They are stored in chunks of

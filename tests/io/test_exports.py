@@ -100,3 +100,52 @@ def test_the_text_export_round_trips_through_gevsims_reader(good, tmp_path):
 def test_an_unknown_stream_is_named(good, tmp_path, capsys, fmt):
     assert main(["export", str(good), "--format", fmt, "--stream", "evnts", "--out", str(tmp_path / "x")]) == 2
     assert "no stream 'evnts'" in capsys.readouterr().err
+
+
+def _read_like_e2vid(path):
+    """A text event file read as E2VID reads it (github.com/uzh-rpg/rpg_e2vid, restated, not copied):
+    ``run_reconstruction.py`` takes the sensor size from the first line (``pd.read_csv(..., header=None,
+    names=['width', 'height'], nrows=1)``: two integers); ``utils/event_readers.py``'s
+    ``FixedDurationEventReader`` skips that line and splits every other one with ``line.split(' ')`` into
+    ``t, x, y, pol`` (float, int, int, int); ``utils/inference_utils.py``'s ``events_to_voxel_grid`` takes the
+    rows ``[t, x, y, pol]``, turns pol 0 into -1 and indexes its grid with ``x + y * width``."""
+    with open(path) as fh:
+        width, height = (int(v) for v in fh.readline().split())  # ValueError unless exactly two integers
+        rows = []
+        for line in fh:
+            t, x, y, pol = line.split(" ")
+            rows.append([float(t), int(x), int(y), int(pol)])
+    return width, height, np.array(rows, np.float64).reshape(-1, 4)
+
+
+def test_the_e2vid_header_is_the_sensor_size_where_e2vids_reader_takes_it(good, tmp_path, capsys):
+    events, w, h = streams(good)
+    out = tmp_path / "events.txt"
+    assert main(["export", str(good), "--format", "text", "--out", str(tmp_path / "plain.txt")]) == 0
+    with pytest.raises(ValueError):  # the issue: gevsim's '#' line is not E2VID's 'W H'
+        _read_like_e2vid(tmp_path / "plain.txt")
+    assert main(["export", str(good), "--format", "text", "--header", "e2vid", "--out", str(out)]) == 0
+    width, height, rows = _read_like_e2vid(out)
+    dvs = events["events"]
+    assert (width, height) == (w, h) and rows.shape == (len(dvs), 4)
+    np.testing.assert_array_equal(np.rint(rows[:, 0] * 1e6).astype(np.int64), dvs["t"])  # seconds, exact to 1 us
+    np.testing.assert_array_equal(rows[:, 1:3], np.c_[dvs["x"], dvs["y"]])
+    np.testing.assert_array_equal(rows[:, 3], dvs["p"].astype(int))  # pol 1 = ON, 0 = OFF (E2VID makes it -1)
+    index = rows[:, 1].astype(int) + rows[:, 2].astype(int) * width  # E2VID's voxel-grid index: in the grid
+    assert index.min() >= 0 and index.max() < width * height
+    # E2VID's FixedSizeEventReader (pandas, skiprows=1, whitespace-separated) reads the same table.
+    np.testing.assert_array_equal(np.loadtxt(out, skiprows=1, ndmin=2), rows)
+    from gevsim.io.text import import_text
+
+    np.testing.assert_array_equal(import_text(out), dvs)  # gevsim reads it back too
+    # A file with no gevsim mark is never replaced; E2VID reads brightness events only; text only.
+    before = out.read_bytes()
+    capsys.readouterr()
+    assert main(["export", str(good), "--format", "text", "--header", "e2vid", "--out", str(out)]) == 2
+    assert out.read_bytes() == before and "exists and is not a gevsim text export" in capsys.readouterr().err
+    for argv, text in ((["--format", "text", "--header", "e2vid", "--stream", "gradient_events"], "gradient stream"),
+                       (["--format", "npz", "--header", "e2vid"], "--header: applies to --format text only")):
+        assert main(["export", str(good), *argv, "--out", str(tmp_path / "x")]) == 2
+        err = capsys.readouterr().err.splitlines()
+        assert len(err) == 1 and err[0].startswith("gevsim: error: ") and text in err[0]
+        assert not (tmp_path / "x").exists()

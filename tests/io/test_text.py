@@ -99,3 +99,17 @@ def test_bad_files_name_the_file(tmp_path, body, match):
     path.write_text("# t x y p\n" + body)
     with pytest.raises(ConfigError, match=f"bad.txt: .*{match}"):
         import_text(path)
+
+
+def test_the_e2vid_layout_starts_with_the_sensor_size(tmp_path):
+    ev = np.array([(3, 4, 100, True), (5, 6, 250, False)], dtype=BRIGHTNESS_DTYPE)
+    export_text(tmp_path / "e.txt", ev, seconds=True, e2vid_size=(346, 260))
+    assert (tmp_path / "e.txt").read_text().splitlines() == ["346 260", "0.000100 3 4 1", "0.000250 5 6 0"]
+    np.testing.assert_array_equal(import_text(tmp_path / "e.txt"), ev)
+    export_text(tmp_path / "none.txt", ev[:0], seconds=True, e2vid_size=(346, 260))
+    assert (tmp_path / "none.txt").read_text() == "346 260\n" and import_text(tmp_path / "none.txt").dtype == ev.dtype
+    with pytest.raises(ValueError, match="brightness events"):
+        export_text(tmp_path / "g.txt", np.ones(1, GRADIENT_DTYPE), seconds=True, e2vid_size=(4, 2))
+    with pytest.raises(ValueError, match="two positive integers"):
+        export_text(tmp_path / "z.txt", ev, seconds=True, e2vid_size=(0, 2))
+    assert not (tmp_path / "g.txt").exists() and not (tmp_path / "z.txt").exists()
