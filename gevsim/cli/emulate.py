@@ -80,11 +80,9 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _frames_through_sensor(args: argparse.Namespace, frames, t_s, source) -> int:
-    """Frame mode through the physical pixel (:mod:`gevsim.emulation.frame_sensor`)."""
-    from gevsim.emulation import EmulationConfig, run
-    from gevsim.emulation.frame_sensor import frame_setup
-    from gevsim.pixel import load_preset
+def _check_sensor_flags(args: argparse.Namespace) -> None:
+    """Frame mode through a sensor: its flags, checked before any frame is read."""
+    from gevsim.emulation.frame_sensor import check_lux
 
     if args.sensor is None or args.illuminance_lux is None:
         raise ConfigError("frame mode through a sensor needs both --sensor NAME and --illuminance-lux LUX",
@@ -93,17 +91,32 @@ def _frames_through_sensor(args: argparse.Namespace, frames, t_s, source) -> int
         if value is not None:
             raise ConfigError(f"{flag} belongs to the paper's frame mode; with --sensor the preset sets the pixel",
                               key=flag)
+    check_lux(args.illuminance_lux)
+
+
+def _frames_through_sensor(args: argparse.Namespace, frames, t_s, source) -> int:
+    """Frame mode through the physical pixel (:mod:`gevsim.emulation.frame_sensor`): the frames' span rounded
+    down to whole steps, ground-truth frames at 1 kHz (fewer over clips longer than 1000 s: at most MAX_FRAMES)."""
+    from gevsim.emulation import EmulationConfig, run
+    from gevsim.emulation.frame_sensor import frame_setup
+    from gevsim.pixel import load_preset
+    from gevsim.timebase import MAX_FRAMES
+
     setup = frame_setup(frames, t_s, preset=load_preset(args.sensor), illuminance_lux=args.illuminance_lux,
-                        source=source)
+                        source=source, step_s=EmulationConfig.step_s)
     names = _emulator_names(args)
     config = EmulationConfig(scene=str(source), sensor=args.sensor, seed=args.seed or 0, duration_s=setup.duration_s,
-                             emulators=tuple(names) if names else EmulationConfig.emulators)
+                             emulators=tuple(names) if names else EmulationConfig.emulators,
+                             frame_rate_hz=min(EmulationConfig.frame_rate_hz, (MAX_FRAMES - 2) / setup.duration_s))
     summary = run(config, args.out, setup=setup, noise=not args.no_noise)
     print(f"{'stream':22s} {'events':>10s} {'events/s':>12s}")
     for name, count in summary.counts.items():
         print(f"{name:22s} {count:10d} {count / summary.duration_s:12.4g}")
+    span = float(t_s[-1] - t_s[0])
+    cut = "" if setup.duration_s == span else f" (the frames span {span:.9g} s: rounded down to whole steps)"
     print(f"gevsim: {len(frames)} frames {summary.width}x{summary.height} from {source} through {args.sensor} at "
-          f"{args.illuminance_lux:g} lx; wrote {args.out}", file=sys.stderr)
+          f"{args.illuminance_lux:g} lx, {summary.steps} steps of {config.step_s * 1e6:g} us = "
+          f"{summary.duration_s:.9g} s{cut}; wrote {args.out}", file=sys.stderr)
     return 0
 
 
@@ -111,6 +124,17 @@ def _emulate_frames(args: argparse.Namespace) -> int:
     from gevsim.emulation import run_frames
     from gevsim.io import frames as loaders
 
+    given = [flag for flag, value in (("--width", args.width), ("--height", args.height),
+                                      ("--duration", args.duration)) if value is not None]
+    if given:
+        raise ConfigError(f"frame mode takes its size and times from the frames; drop {', '.join(given)}",
+                          key=given[0])
+    through_sensor = args.sensor is not None or args.illuminance_lux is not None
+    if through_sensor:
+        _check_sensor_flags(args)
+    elif args.seed is not None and args.threshold_mismatch is None:
+        raise ConfigError("--seed draws the DVS threshold mismatch: give --threshold-mismatch LN as well",
+                          key="--seed")
     if args.evreal is not None:
         frames, t_s = loaders.load_evreal_frames(args.evreal)
         source = args.evreal
@@ -120,19 +144,11 @@ def _emulate_frames(args: argparse.Namespace) -> int:
     else:
         frames, t_s = loaders.load_frame_folder(args.frames, fps=args.fps)
         source = args.frames
+    if through_sensor:
+        return _frames_through_sensor(args, frames, t_s, source)
     from gevsim.emulation.emulators import FRAME_EMULATORS
 
-    given = [flag for flag, value in (("--width", args.width), ("--height", args.height),
-                                      ("--duration", args.duration)) if value is not None]
-    if given:
-        raise ConfigError(f"frame mode takes its size and times from the frames; drop {', '.join(given)}",
-                          key=given[0])
-    if args.sensor is not None or args.illuminance_lux is not None:
-        return _frames_through_sensor(args, frames, t_s, source)
     names = _emulator_names(args, FRAME_EMULATORS)
-    if args.seed is not None and args.threshold_mismatch is None:
-        raise ConfigError("--seed draws the DVS threshold mismatch: give --threshold-mismatch LN as well",
-                          key="--seed")
     summary = run_frames(frames, t_s, args.out, seed=args.seed or 0, source=source,
                          emulators=names or FRAME_EMULATORS, threshold_mismatch_ln=args.threshold_mismatch or 0.0,
                          log_mode=args.log or "offset")

@@ -205,8 +205,9 @@ def load_video(path: str | os.PathLike, *, fps: float | None = None) -> tuple[np
                           source=str(path)) from None
     if fps is None:
         fps = meta.get("fps")
-        if fps is None:
-            raise ConfigError("the video's metadata has no frame rate: give fps", source=str(path))
+        if _positive(fps) is None:
+            stated = "has no frame rate" if fps is None else f"states a frame rate of {fps!r}"
+            raise ConfigError(f"the video's metadata {stated}: give fps", source=str(path), key="fps")
     return frames, _fps_times(fps, len(frames), source=str(path))
 
 
@@ -223,8 +224,8 @@ def _stated_count(meta: dict) -> int | None:
     n = _positive(meta.get("nframes"))
     if n is None:
         duration, fps = _positive(meta.get("duration")), _positive(meta.get("fps"))
-        n = None if duration is None or fps is None else duration * fps
-    return None if n is None else max(1, math.ceil(min(n, 2.0**62) - 1e-6))
+        n = None if duration is None or fps is None else _positive(duration * fps)  # None where it overflows
+    return None if n is None else max(1, math.ceil(n - 1e-6))
 
 
 def _stated_shape(meta: dict) -> tuple[int, int] | None:
