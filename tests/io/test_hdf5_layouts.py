@@ -301,7 +301,7 @@ def _extra_stream(f: h5py.File, data: st.DataObject) -> None:
         g[name] = np.full(f[f"{src}/t"].shape[0], 1e9)
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, database=None,
+@settings(max_examples=40, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_the_reader_returns_checked_events_or_one_config_error(template, tmp_path, data):
