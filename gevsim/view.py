@@ -178,10 +178,10 @@ def _ms(us: int) -> str:
 
 
 def window_count(total_us: int, *, window_us: int, start_us: int = 0, end_us: int | None = None,
-                 max_frames: int = MAX_FRAMES, source: str | None = None) -> int:
+                 max_frames: int | None = MAX_FRAMES, source: str | None = None) -> int:
     """How many windows ``[start + k window, start + (k + 1) window)`` cover ``[start_us, end_us)`` (``end_us``
-    None: the file's end ``total_us``; at least one window); more than ``max_frames`` is refused up front
-    with a line saying how many and which flag to change."""
+    None: the file's end ``total_us``; at least one window); more than ``max_frames`` (None: no limit) is
+    refused up front with a line saying how many and which flag to change."""
     end = total_us if end_us is None else end_us
     if end > total_us:
         raise ConfigError(f"{_ms(end)} ms is past the file's end ({_ms(total_us)} ms)", source=source,
@@ -190,7 +190,7 @@ def window_count(total_us: int, *, window_us: int, start_us: int = 0, end_us: in
         raise ConfigError(f"{_ms(start_us)} ms is not before the end of the view ({_ms(end)} ms"
                           f"{', the end of the file' if end_us is None else ''})", source=source, key="--start-ms")
     n = max(1, -(-(end - start_us) // window_us))
-    if n > max_frames:
+    if max_frames is not None and n > max_frames:
         fit = -(-(end - start_us) // max_frames)
         raise ConfigError(f"{n:,} windows of {_ms(window_us)} ms from {_ms(start_us)} to {_ms(end)} ms are more than "
                           f"the {max_frames:,} frames a view draws at most: give a longer --window-ms (at least "
@@ -238,10 +238,11 @@ def render_windows(path: str | os.PathLike, *, window_us: int = 1000, streams: l
     panels' names (left to right: the streams, DVS first and then in the emulators' order, and
     ``ground truth``; each picture shows their human names, :func:`stream_title`). Holds every picture:
     :func:`view` writes them one at a time instead."""
-    _check_times(window_us, start_us, None, count or 1)
+    _check_times(window_us, start_us, None, MAX_FRAMES)
     with EventReader(path) as r:
-        n = window_count(r.t_end_us, window_us=window_us, start_us=start_us, source=str(path)) \
-            if count is None else count
+        n = window_count(r.t_end_us, window_us=window_us, start_us=start_us, source=str(path),
+                         max_frames=None if count else MAX_FRAMES)
+        n = min(n, count) if count else n
         names = _stream_names(r, streams, str(path))
         titles = names + (["ground truth"] if "log_photocurrent" in r.frame_names else [])
         return np.asarray(list(_pictures(r, names, window_us=window_us, start_us=start_us, n=n))), titles
@@ -252,9 +253,9 @@ def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 10
     """Write the event pictures of an emulation file's windows ``[start + k window, start + (k + 1) window)``
     from ``start_us`` to ``end_us`` (None: the file's end) to ``out``: ``.png`` (a strip of the first
     STRIP_ROWS windows), ``.gif`` or ``.mp4`` (every window, ``fps`` a second), each window written as it is
-    drawn (memory: one window and the encoder). More than ``max_frames`` windows are refused before any
-    work (see :data:`MAX_FRAMES`), as are times, counts and rates out of range (:class:`ConfigError` naming
-    the command's flag)."""
+    drawn (memory: one window and the encoder). An animation of more than ``max_frames`` windows is refused
+    before any work (see :data:`MAX_FRAMES`; a strip draws its STRIP_ROWS whatever the span), as are times,
+    counts and rates out of range (:class:`ConfigError` naming the command's flag)."""
     out = Path(out)
     kind = out.suffix.lower()
     if kind not in (".png", ".gif", ".mp4"):
@@ -266,8 +267,8 @@ def view(path: str | os.PathLike, out: str | os.PathLike, *, window_us: int = 10
     _check_times(window_us, start_us, end_us, max_frames)
     check_file(out, "picture", is_ours, inputs=[path])  # replaces only an earlier `gevsim view` picture
     with EventReader(path) as r:
-        n = window_count(r.t_end_us, window_us=window_us, start_us=start_us, end_us=end_us, max_frames=max_frames,
-                         source=str(path))
+        n = window_count(r.t_end_us, window_us=window_us, start_us=start_us, end_us=end_us, source=str(path),
+                         max_frames=None if kind == ".png" else max_frames)
         names = _stream_names(r, streams, str(path))
         with atomic_path(out) as tmp:
             writer = open_writer(tmp, kind, fps)
