@@ -38,6 +38,7 @@ name in a resumed folder.
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import os
@@ -83,11 +84,14 @@ def read_mark(folder: str | os.PathLike) -> dict | None:
 
 
 def digest(path: str | os.PathLike) -> str | None:
-    """The SHA-256 of a regular file's contents (never through a link), or None where it is not one."""
+    """The SHA-256 of a regular file's contents, or None where it is not one (a link is never followed, a
+    FIFO or device never read); OSError where it cannot be read."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
-    except OSError:
-        return None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:  # it became a link
+            return None
+        raise
     with os.fdopen(fd, "rb") as fh:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             return None
@@ -97,19 +101,29 @@ def digest(path: str | os.PathLike) -> str | None:
     return sha.hexdigest()
 
 
-def _scan(root: Path, skip: Callable[[str], bool], rel: str = "") -> Iterator[tuple[str, os.stat_result]]:
-    """(relative POSIX path, lstat) of every entry under ``root``, sorted, each folder before its contents;
-    an entry that ``skip`` names is left out with everything under it. Links are entries, never followed."""
-    with os.scandir(root / rel if rel else root) as entries:
-        found = sorted((entry.name, entry) for entry in entries)
-    for name, entry in found:
-        path = f"{rel}/{name}" if rel else name
+def _scan(root: Path, skip: Callable[[str], bool]) -> Iterator[tuple[str, os.stat_result]]:
+    """(relative POSIX path, lstat) of every entry under ``root``, sorted, each folder before its contents
+    (read only when the caller asks for them); an entry that ``skip`` names is left out with everything under
+    it. Links are entries, never followed."""
+    stack: list[tuple[str, Iterator[tuple[str, os.DirEntry]]]] = [("", _sorted(root))]
+    while stack:
+        rel, entries = stack[-1]
+        item = next(entries, None)
+        if item is None:
+            stack.pop()
+            continue
+        path = f"{rel}/{item[0]}" if rel else item[0]
         if skip(path):
             continue
-        st = entry.stat(follow_symlinks=False)
+        st = item[1].stat(follow_symlinks=False)
         yield path, st
         if stat.S_ISDIR(st.st_mode):
-            yield from _scan(root, skip, path)
+            stack.append((path, _sorted(root / path)))
+
+
+def _sorted(folder: Path) -> Iterator[tuple[str, os.DirEntry]]:
+    with os.scandir(folder) as entries:
+        return iter(sorted((entry.name, entry) for entry in entries))
 
 
 def _skipper(kind: str) -> Callable[[str], bool]:
@@ -172,9 +186,19 @@ def _what(st: os.stat_result) -> str:
 
 
 def difference(folder: str | os.PathLike, mark: dict, kind: str) -> str | None:
-    """Why ``folder`` is not what its ``mark`` records (the first foreign, changed or missing entry, in
-    sorted order), or None where it is; see the module's notes for what each kind may differ in."""
-    root = Path(folder)
+    """Why ``folder`` may not receive a ``kind`` output although its ``mark`` is of that kind: its first
+    foreign, changed or missing entry (in sorted order) and what to do, in one sentence; None where it holds
+    what the mark records (see the module's notes for what each kind may differ in)."""
+    problem = _first_difference(Path(folder), mark, kind)
+    if problem is None:
+        return None
+    verb = "replaces" if kind in REPLACED_KINDS else "writes into"
+    advice = "restore it" if problem.endswith("is missing (moved or deleted)") else "move it out"
+    return (f"{problem}; gevsim {verb} a {kind} folder only while it holds what gevsim wrote there: {advice} or "
+            "choose another output folder")
+
+
+def _first_difference(root: Path, mark: dict, kind: str) -> str | None:
     folders, files = _records(mark)
     if files is None:
         files = {}

@@ -96,9 +96,7 @@ def check_folder(folder: str | os.PathLike, kind: str, *, inputs: Iterable[str |
     except OSError as exc:
         raise ConfigError(f"cannot read this folder ({exc.strerror or exc})", source=src) from None
     if why is not None:
-        verb = "replaces" if kind in REPLACED_KINDS else "writes into"
-        raise ConfigError(f"{why}; gevsim {verb} a {kind} folder only while it holds what gevsim wrote there: move "
-                          "it out or choose another output folder", source=src)
+        raise ConfigError(why, source=src)
 
 
 def check_inputs_outside(out: Path, inputs: Iterable[str | os.PathLike | None]) -> None:

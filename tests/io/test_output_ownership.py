@@ -298,7 +298,8 @@ def test_a_second_render_keeps_what_the_user_put_deep_inside_the_first(tmp_path,
     _refused(argv, capsys, f"basis/lamp/{exr.name} was changed since gevsim wrote it")
     assert exr.read_bytes() == bytes(data)
     exr.unlink()
-    _refused(argv, capsys, f"basis/lamp/{exr.name}, which gevsim wrote, is missing")
+    _refused(argv, capsys, f"basis/lamp/{exr.name}, which gevsim wrote, is missing (moved or deleted); gevsim "
+                           "replaces a render folder only while it holds what gevsim wrote there: restore it or")
     shutil.rmtree(out)
     assert cli.main(argv) == 0 and cli.main(argv) == 0  # an untouched render is replaced
 
@@ -392,6 +393,12 @@ def test_a_killed_studys_work_in_progress_is_resumed_and_nothing_else_is_taken(t
     with pytest.raises(ConfigError, match="notes.txt is a file gevsim did not write"):
         _study(study, {})
     (study / "notes.txt").unlink()
+    (study / "runs").rename(tmp_path / "elsewhere")
+    (study / "runs").symlink_to(tmp_path / "elsewhere")  # gevsim would write and delete through it
+    with pytest.raises(ConfigError, match="runs is a symbolic link gevsim did not write"):
+        _study(study, {})
+    (study / "runs").unlink()
+    (tmp_path / "elsewhere").rename(study / "runs")
     _study(study, {"runs/0123456789abcdef/r0.json": "{}"})  # resumed
     assert "open" not in _mark(study) and "runs/0123456789abcdef/r0.npz" in _mark(study)["files"]
     old = tmp_path / "old"  # a mark from before issue 36 records no files: not trusted
