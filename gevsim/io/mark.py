@@ -189,7 +189,15 @@ def difference(folder: str | os.PathLike, mark: dict, kind: str) -> str | None:
     """Why ``folder`` may not receive a ``kind`` output although its ``mark`` is of that kind: its first
     foreign, changed or missing entry (in sorted order) and what to do, in one sentence; None where it holds
     what the mark records (see the module's notes for what each kind may differ in)."""
-    problem = _first_difference(Path(folder), mark, kind)
+    folders, files = _records(mark)
+    if files is None:
+        first = next(_scan(Path(folder), _skipper(kind)), None)
+        if first is None:
+            return None
+        return (f"its mark ({MARK}) records no files (a mark of an earlier gevsim, or not gevsim's), so nothing "
+                f"here (first: {first[0]}) can be told from yours: choose another output folder, or remove this one if "
+                "nothing in it is yours")
+    problem = _first_difference(Path(folder), kind, folders, files, is_open=mark.get("open") is True)
     if problem is None:
         return None
     verb = "replaces" if kind in REPLACED_KINDS else "writes into"
@@ -198,15 +206,8 @@ def difference(folder: str | os.PathLike, mark: dict, kind: str) -> str | None:
             "choose another output folder")
 
 
-def _first_difference(root: Path, mark: dict, kind: str) -> str | None:
-    folders, files = _records(mark)
-    if files is None:
-        files = {}
-        unrecorded = (f"its mark ({MARK}) does not record: the mark records no files (an earlier gevsim's, or "
-                      "not gevsim's)")
-    else:
-        unrecorded = "gevsim did not write"
-    claims = CLAIMS.get(kind, ()) if mark.get("open") is True else ()
+def _first_difference(root: Path, kind: str, folders: set[str], files: dict, *, is_open: bool) -> str | None:
+    claims = CLAIMS.get(kind, ()) if is_open else ()
     seen = set()
     for path, st in _scan(root, _skipper(kind)):
         if path.partition("/")[0] in claims and (path not in claims or stat.S_ISDIR(st.st_mode)):
@@ -216,7 +217,7 @@ def _first_difference(root: Path, mark: dict, kind: str) -> str | None:
             continue
         recorded = files.get(path)
         if recorded is None:
-            return f"{path} is {_what(st)} {unrecorded}" if path not in folders else \
+            return f"{path} is {_what(st)} gevsim did not write" if path not in folders else \
                 f"{path} was a folder gevsim wrote and is now {_what(st)}"
         if not stat.S_ISREG(st.st_mode):
             return f"{path} was a file gevsim wrote and is now {_what(st)}"

@@ -343,8 +343,9 @@ def test_a_hand_written_mark_is_not_trusted(tmp_path, capsys):
     out.mkdir()
     (out / MARK).write_text(json.dumps({"kind": "render", "entries": ["notes.txt"]}))
     (out / "notes.txt").write_text("precious")
-    _refused(_render(out, tmp_path / "c"), capsys, f"{out}: notes.txt is a file its mark (.gevsim.output) does not "
-                                                   "record: the mark records no files")
+    _refused(_render(out, tmp_path / "c"), capsys, f"{out}: its mark (.gevsim.output) records no files (a mark of an "
+                                                   "earlier gevsim, or not gevsim's), so nothing here (first: "
+                                                   "notes.txt) can be told from yours")
     forged = {"kind": "render", "folders": [], "files": {"notes.txt": [8, "0" * 64]}}  # right size, wrong digest
     (out / MARK).write_text(json.dumps(forged))
     _refused(_render(out, tmp_path / "c"), capsys, "notes.txt was changed since gevsim wrote it")
@@ -404,5 +405,5 @@ def test_a_killed_studys_work_in_progress_is_resumed_and_nothing_else_is_taken(t
     old = tmp_path / "old"  # a mark from before issue 36 records no files: not trusted
     _study(old, {"report.md": "# report"})
     (old / MARK).write_text(json.dumps({"kind": "study", "gevsim": "0.1.0"}))
-    with pytest.raises(ConfigError, match="old: report.md is a file its mark .* does not record"):
+    with pytest.raises(ConfigError, match=r"old: its mark .* records no files .* \(first: report.md\)"):
         _study(old, {})
