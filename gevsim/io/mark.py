@@ -201,7 +201,7 @@ def difference(folder: str | os.PathLike, mark: dict, kind: str) -> str | None:
     if problem is None:
         return None
     verb = "replaces" if kind in REPLACED_KINDS else "writes into"
-    advice = "restore it" if problem.endswith("is missing (moved or deleted)") else "move it out"
+    advice = "restore it, remove the folder yourself" if problem.endswith("(moved or deleted)") else "move it out"
     return (f"{problem}; gevsim {verb} a {kind} folder only while it holds what gevsim wrote there: {advice} or "
             "choose another output folder")
 

@@ -299,7 +299,8 @@ def test_a_second_render_keeps_what_the_user_put_deep_inside_the_first(tmp_path,
     assert exr.read_bytes() == bytes(data)
     exr.unlink()
     _refused(argv, capsys, f"basis/lamp/{exr.name}, which gevsim wrote, is missing (moved or deleted); gevsim "
-                           "replaces a render folder only while it holds what gevsim wrote there: restore it or")
+                           "replaces a render folder only while it holds what gevsim wrote there: restore it, "
+                           "remove the folder yourself or choose another output folder")
     shutil.rmtree(out)
     assert cli.main(argv) == 0 and cli.main(argv) == 0  # an untouched render is replaced
 
