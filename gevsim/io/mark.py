@@ -33,6 +33,13 @@ under a claim is accepted as the dead run's, and everything else must still matc
 written into the folder while a run is writing are taken for the run's. Stages
 (``.NAME.gevsim-XXXXXXXX...``, :mod:`gevsim.io.staging`), the lock file and the mark are gevsim's by
 name in a resumed folder.
+
+Limits: a file put inside a replaced folder between its last check and the swap (the time the check
+takes) is not seen; after a killed study or dataset run, a file put under a claim before the rerun is
+taken for the dead run's; a ``--cache`` inside a study folder under another name than ``render-cache``
+is not a claim, so after a failed run its new entries are refused (one line) rather than resumed. A mark
+is read up to :data:`MARK_MAX_BYTES`; a mark that records no files (an earlier gevsim's, or hand-written)
+makes its folder no one's.
 """
 
 from __future__ import annotations

@@ -1,14 +1,18 @@
-"""The one atomic-output mechanism: files and folders appear whole or not at all."""
+"""The one atomic-output mechanism: files and folders appear whole or not at all; a study or dataset folder
+(:func:`gevsim.io.exclusive` with a kind) is written into only while it holds what gevsim wrote (issue 36)."""
 
+import json
 import os
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from gevsim.errors import ConfigError
-from gevsim.io import MANIFEST, Staged, atomic_dir, atomic_path, remove_stale, sweep_stale
+from gevsim.io import MANIFEST, Staged, atomic_dir, atomic_path, exclusive, remove_stale, sweep_stale
+from gevsim.io.mark import MARK, read_mark
 
 
 def test_file_appears_only_on_success(tmp_path):
@@ -157,3 +161,70 @@ def test_outputs_follow_the_umask(tmp_path, umask):
     assert mode["a.json"] == mode["e.h5"] == mode["plain.txt"] == 0o666 & ~umask
     assert mode["folder"] == mode["plain"] == 0o777 & ~umask
     assert (tmp_path / "folder" / "inside.txt").stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+def _tree(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _mark(folder: Path) -> dict:
+    mark = read_mark(folder)
+    assert mark is not None, f"{folder} has no mark"
+    return mark
+
+
+def _study(folder: Path, files: dict[str, str]) -> None:
+    with exclusive(folder, what="study", kind="study"):
+        for name, text in files.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text)
+
+
+def test_a_study_folder_is_written_into_only_while_it_holds_what_gevsim_wrote(tmp_path):
+    """A study is resumed, not replaced, but its report, figures and runs' work folders are overwritten or
+    deleted by the next run: a note beside them or an edited report is refused first, never lost."""
+    study = tmp_path / "s"
+    _study(study, {"report.md": "# report", "runs/0123456789abcdef/r0.json": "{}"})
+    mark = _mark(study)
+    assert "open" not in mark and set(mark["files"]) == {"report.md", "runs/0123456789abcdef/r0.json"}
+    (study / "runs" / "0123456789abcdef" / "r0.json").unlink()  # a file gevsim wrote may go: the run redoes it
+    _study(study, {"report.md": "# report 2"})
+    (study / "report.md").write_text("# my edits")
+    (study / "runs" / "0123456789abcdef" / "r0").mkdir()
+    (study / "runs" / "0123456789abcdef" / "r0" / "notes.txt").write_text("mine")
+    before = _tree(study)
+    for name in ("report.md", "runs/0123456789abcdef/r0"):
+        with pytest.raises(ConfigError, match=f"s: {name} (was changed since gevsim wrote it|is a folder gevsim did "
+                                              "not write); gevsim writes into a study folder only while"):
+            _study(study, {"report.md": "# report 3"})
+        (study / "report.md").write_text("# report 2")
+    assert _tree(study) == {**before, "report.md": b"# report 2"}
+
+
+def test_a_killed_studys_work_in_progress_is_resumed_and_nothing_else_is_taken(tmp_path):
+    """A run that fails (or is killed) leaves its mark open: what it wrote under runs/ is not recorded, and the
+    rerun resumes it; everything else must still be what the last good run recorded."""
+    study = tmp_path / "s"
+    _study(study, {"report.md": "# report"})
+    with pytest.raises(RuntimeError), exclusive(study, what="study", kind="study"):
+        (study / "runs" / "0123456789abcdef").mkdir(parents=True)
+        (study / "runs" / "0123456789abcdef" / "r0.npz").write_bytes(b"half")
+        raise RuntimeError("killed")
+    assert _mark(study)["open"] is True and "runs/0123456789abcdef/r0.npz" not in _mark(study)["files"]
+    (study / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="notes.txt is a file gevsim did not write"):
+        _study(study, {})
+    (study / "notes.txt").unlink()
+    (study / "runs").rename(tmp_path / "elsewhere")
+    (study / "runs").symlink_to(tmp_path / "elsewhere")  # gevsim would write and delete through it
+    with pytest.raises(ConfigError, match="runs is a symbolic link gevsim did not write"):
+        _study(study, {})
+    (study / "runs").unlink()
+    (tmp_path / "elsewhere").rename(study / "runs")
+    _study(study, {"runs/0123456789abcdef/r0.json": "{}"})  # resumed
+    assert "open" not in _mark(study) and "runs/0123456789abcdef/r0.npz" in _mark(study)["files"]
+    old = tmp_path / "old"  # a mark from before issue 36 records no files: not trusted
+    _study(old, {"report.md": "# report"})
+    (old / MARK).write_text(json.dumps({"kind": "study", "gevsim": "0.1.0"}))
+    with pytest.raises(ConfigError, match=r"old: its mark .* records no files .* \(first: report.md\)"):
+        _study(old, {})
