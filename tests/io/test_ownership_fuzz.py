@@ -1,11 +1,11 @@
 """Issue 36, items 1 and 7: the ownership check under random user edits (hypothesis).
 
 A folder written through :func:`gevsim.io.atomic_dir` (a replaced kind) or :func:`gevsim.io.exclusive` (a
-resumed kind) holds a small random tree; a random sequence of user edits is applied inside it (a file added
-at any depth, a folder added, a file's bytes changed, a file replaced by a folder or by a link, a link out
-of the tree added, a file renamed); then gevsim tries to write there again. Either the edits changed
-nothing and gevsim writes, or it is refused with a ConfigError and every entry the user left (and the file
-outside the tree a link points to) is still there with its bytes.
+resumed kind: study, dataset) holds a small random tree; a random sequence of user edits is applied inside
+it (a file added at any depth, a folder added, a file's bytes changed, a file replaced by a folder or by a
+link, a link out of the tree added, a file renamed); then gevsim tries to write there again. Either the
+edits changed nothing and gevsim writes, or it is refused with a ConfigError and every entry the user left
+(and the file outside the tree a link points to) is still there with its bytes.
 """
 
 from __future__ import annotations
@@ -89,8 +89,8 @@ def apply(root: Path, outside: Path, edits: list[tuple[str, int, str, bytes]]) -
 def write_again(root: Path, kind: str) -> bool:
     """Whether gevsim wrote its output of ``kind`` into ``root`` again (False: refused with a ConfigError)."""
     try:
-        if kind == "study":
-            with exclusive(root, what="study", kind="study"):
+        if kind in ("study", "dataset"):
+            with exclusive(root, what=kind, kind=kind):
                 (root / "report.md").write_text("new report")
         else:
             with atomic_dir(root, kind=kind) as stage:
@@ -104,8 +104,8 @@ def _property(kind: str, tree, edits) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         root, outside = Path(tmp) / "out", Path(tmp) / "secret.txt"
         outside.write_bytes(b"the user's, outside the output")
-        if kind == "study":
-            with exclusive(root, what="study", kind="study"):
+        if kind in ("study", "dataset"):
+            with exclusive(root, what=kind, kind=kind):
                 write_tree(root, tree)
         else:
             with atomic_dir(root, kind=kind) as stage:
@@ -128,6 +128,6 @@ def test_a_replaced_folder_is_replaced_only_when_no_user_edit_was_made(kind, tre
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(tree=TREES, edits=EDITS)
-def test_a_study_folder_is_written_into_only_when_no_user_edit_was_made(tree, edits):
-    _property("study", tree, edits)
+@given(kind=st.sampled_from(["study", "dataset"]), tree=TREES, edits=EDITS)
+def test_a_study_or_dataset_folder_is_written_into_only_when_no_user_edit_was_made(kind, tree, edits):
+    _property(kind, tree, edits)
