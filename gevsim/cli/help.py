@@ -43,7 +43,9 @@ COMMANDS: dict[str, tuple[str, list[str]]] = {
     "view": ("Draw an emulation file's events as pictures: one per time window, a panel per stream (DVS and "
              "center-surround ON blue and OFF red; gradient X steps in red, Y in green) beside the ground-truth "
              "log frame, with a time bar. A .png holds up to 8 windows one under the other; .gif and .mp4 "
-             "animate every window.",
+             "animate every window from --start-ms to --end-ms, each written as it is drawn, at most "
+             "--max-frames of them (10,000: a longer span needs a longer --window-ms). A GIF stores whole 1/100 s "
+             "delays (--fps 0.01-100), an MP4 0.01-1000 fps.",
              ["gevsim view out/office.h5 --out out/office.gif --window-ms 1",
               "gevsim view out/office.h5 --out out/office.png --streams events --start-ms 10"]),
     "dataset": ("Generate many randomised sequences (scenes, lamps, sensors, motions drawn from the config's "
