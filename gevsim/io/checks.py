@@ -23,7 +23,8 @@ it is used, before any of its events reaches a caller, and each frame stream whe
 
 A failure is a :class:`~gevsim.errors.ConfigError` naming the file, the dataset or attribute and the bad
 value (the CLI prints one line, exit 2). Streams are read :data:`BLOCK` events at a time, so the check
-needs memory for one block and the ``ms_to_idx`` array, whatever the length of the recording.
+needs memory for one block (events, and ``ms_to_idx`` entries) and the milliseconds that hold events,
+whatever the length of the recording.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ STANDARD = {"events": BRIGHTNESS_DTYPE, "gradient_events": GRADIENT_DTYPE}
 #: Largest width or height: x and y are int16.
 MAX_SIZE_PX = 2**15
 #: Longest recording read, one day, as long as gevsim writes (:data:`gevsim.timebase.MAX_DURATION_S`;
-#: ms_to_idx, 8 bytes a millisecond, is read whole: 0.7 GB).
+#: ms_to_idx, 8 bytes a millisecond, 0.7 GB, is checked a block at a time).
 MAX_T_END_US = int(MAX_DURATION_S) * 10**6
 #: Events per block of the stream check.
 BLOCK = 2**20
@@ -168,7 +169,7 @@ def check_stream(group: h5py.Group, *, shape: tuple[int, int], t_end_us: int, so
     if ms_ds.shape[0] != n_ms:
         raise ConfigError(f"has {ms_ds.shape[0]} entries, but t_end_us = {t_end_us} needs {n_ms} (one a "
                           f"millisecond)", source=source, key=ms_ds.name)
-    counts = np.zeros(n_ms + 1, np.int64)  # counts[k]: events in millisecond k - 1
+    bins, counts = [], []  # the milliseconds k (t in [(k - 1) ms, k ms)) that hold events, and how many
     last = 0
     for i0 in range(0, n, BLOCK):
         cols = {name: read(group[name], slice(i0, i0 + BLOCK), source=source) for name in names}
@@ -185,8 +186,9 @@ def check_stream(group: h5py.Group, *, shape: tuple[int, int], t_end_us: int, so
             raise ConfigError(f"not sorted: t[{i0 + i}] = {int(t[i])} us follows {before} us", source=source,
                               key=f"{group.name}/t")
         last = int(t[-1])
-        k = t // 1000 + 1
-        counts[int(k[0]):int(k[-1]) + 1] += np.bincount(k - k[0])
+        k, c = np.unique(t // 1000 + 1, return_counts=True)
+        bins.append(k)
+        counts.append(c)
         for name in names:
             if dtype[name] == np.bool_ and cols[name].dtype != np.bool_ and np.any(cols[name] > 1):
                 raise ConfigError(f"a polarity stored as 0 or 1 holds {int(cols[name].max())}", source=source,
@@ -198,14 +200,25 @@ def check_stream(group: h5py.Group, *, shape: tuple[int, int], t_end_us: int, so
             check_events(ev, name=group.name, shape=shape)
         except ValueError as exc:
             raise ConfigError(f"corrupt event data: {exc}", source=source) from None
-    ms = read(ms_ds, source=source)
-    expected = np.cumsum(counts)[:n_ms]
-    wrong = np.flatnonzero(ms != expected)
-    if wrong.size:
-        k0 = int(wrong[0])
-        raise ConfigError(f"entry {k0} is {_show(ms[k0])}, but t puts {int(expected[k0])} events before "
-                          f"{k0} ms ({wrong.size} entries wrong)", source=source, key=ms_ds.name)
+    _check_ms_to_idx(ms_ds, np.concatenate(bins or [np.zeros(0, np.int64)]),
+                     np.cumsum(np.concatenate(counts or [np.zeros(0, np.int64)])), source=source)
     return dtype
+
+
+def _check_ms_to_idx(ms_ds: h5py.Dataset, bins: np.ndarray, before: np.ndarray, *, source: str) -> None:
+    """Check ``ms_to_idx`` against the events, a block at a time: entry j must be the number of events before
+    j ms, ``before[i]`` counting those up to millisecond bin ``bins[i]`` (increasing; a bin may repeat across
+    event blocks). Memory: the bins that hold events and one block, not a day's 86.4 M entries three times."""
+    for j0 in range(0, ms_ds.shape[0], BLOCK):
+        ms = read(ms_ds, slice(j0, j0 + BLOCK), source=source)
+        j = np.arange(j0, j0 + len(ms))
+        i = np.searchsorted(bins, j, side="right") - 1  # the last bin at or before j
+        expected = np.where(i >= 0, before[np.maximum(i, 0)] if len(before) else 0, 0)
+        wrong = np.flatnonzero(ms != expected)
+        if wrong.size:
+            k0 = int(wrong[0])
+            raise ConfigError(f"entry {j0 + k0} is {_show(ms[k0])}, but t puts {int(expected[k0])} events before "
+                              f"{j0 + k0} ms", source=source, key=ms_ds.name)
 
 
 def read_frames(group: object, *, shape: tuple[int, int], t_end_us: int, source: str) -> tuple[np.ndarray, np.ndarray]:

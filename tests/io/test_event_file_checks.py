@@ -217,3 +217,30 @@ def test_a_file_is_checked_once_until_it_changes(good, tmp_path, monkeypatch):
     with EventReader(path) as r, pytest.raises(ConfigError, match="outside the 24x18 sensor"):
         r.read("events")
     assert len(calls) == 2
+
+
+def test_a_long_recordings_ms_to_idx_is_checked_a_block_at_a_time(tmp_path):
+    """A legal two-hour file of 20 events: its ms_to_idx holds 7.2 million entries (58 MB). The check read it
+    whole and built two more arrays of its length (a day-long file: 2.3 GB); a block at a time it needs a
+    fixed few tens of MB, and a wrong entry past the first block is still found (issue 36)."""
+    import tracemalloc
+
+    events = np.zeros(20, BRIGHTNESS_DTYPE)
+    events["t"], events["x"], events["y"], events["p"] = np.arange(20) * 360_000_000, np.arange(20) % 16, 3, 1
+    path = tmp_path / "long.h5"
+    with EventWriter(path, width=16, height=12, config_toml="", seed=0) as w:
+        w.append("events", events)
+        w.set_end(2 * 3600 * 10**6)
+    tracemalloc.start()
+    try:
+        with EventReader(path) as r:
+            assert len(r.read("events")) == 20
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 58e6, f"{peak / 1e6:.0f} MB"  # less than the ms_to_idx array alone
+    with h5py.File(path, "r+") as f:
+        f["events/ms_to_idx"][5_000_000] += 1
+    with pytest.raises(ConfigError, match="entry 5000000 is 15, but t puts 14 events before 5000000 ms"):
+        with EventReader(path) as r:
+            r.read("events")
