@@ -44,7 +44,9 @@ releases the GIL while HDF5 compresses and writes, h5py 3.0 release notes). A fa
 raised again, with its message, by the next ``append``, ``wait`` or ``close`` (and every later one);
 ``close`` and leaving a ``with`` block then discard the file. The columns are gathered into whole chunks
 before they are written, so the datasets, and the events read back, do not depend on how the stream was
-split into appends nor on the thread.
+split into appends nor on the thread. Every other change to the file (a new stream's group, a frame, an
+array, an attribute) waits first for the chunks queued before it, so HDF5 allocates the file's space in one
+order whatever the thread's timing: the same run writes the same bytes (issue 37, item 6).
 """
 
 from __future__ import annotations
@@ -204,6 +206,12 @@ class EventWriter:
         self._write(state, events, ms)
         state.n, state.last_t, state.n_ms = n0 + len(t), int(t[-1]), state.n_ms + len(ms)
 
+    def _in_order(self) -> None:
+        """Wait for the queued chunks before any other change to the file: the file's layout (HDF5 allocates
+        space in the order of the writes) then does not depend on the writer thread's timing."""
+        if self._worker is not None:
+            self._worker.wait()
+
     def _create_stream(self, stream: str, dtype: np.dtype) -> _Stream:
         if not isinstance(stream, str) or not stream or "/" in stream or stream == "frames":
             raise ValueError(f"invalid stream name {stream!r}: a non-empty name without '/', not 'frames'")
@@ -211,6 +219,7 @@ class EventWriter:
             raise TypeError(f"stream {stream!r} must have dtype {_STANDARD[stream]}, got {dtype}")
         if stream in self._file:
             raise ValueError(f"{stream!r} already exists in the file and is not an event stream")
+        self._in_order()
         state = _Stream(self._file.create_group(stream), dtype, self._filters)
         self._streams[stream] = state
         return state
@@ -236,6 +245,7 @@ class EventWriter:
         image = np.asarray(image)
         if image.ndim not in (2, 3):
             raise ValueError(f"frame {name!r}: image must be (H, W) or (H, W, C), got shape {image.shape}")
+        self._in_order()
         group = self._file.require_group("frames")
         if name not in group:
             g = group.create_group(name)
@@ -267,6 +277,7 @@ class EventWriter:
             raise ValueError(f"{path_in_file!r} at the root is reserved for the DSEC layout of the brightness stream")
         array = np.asarray(array)
         ensure_room(self.path, array.nbytes)
+        self._in_order()
         opts = _filters(self._filters, array.dtype) if array.ndim and array.size else {}
         self._file.create_dataset(path_in_file, data=array, **opts)
         _describe(self._file[path_in_file], units, meaning)
@@ -275,6 +286,7 @@ class EventWriter:
     def set_attrs(self, group_path: str, **attrs: object) -> None:
         """Set attributes on a group (created if missing) or an existing dataset."""
         self._check_open()
+        self._in_order()
         obj = self._file[group_path] if group_path in self._file else self._file.require_group(group_path)
         for key, value in attrs.items():
             if value is None or isinstance(value, dict):
