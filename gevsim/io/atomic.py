@@ -37,6 +37,12 @@ from gevsim.io.staging import (  # noqa: F401 (re-exported: they lived here)
     sweep_stale,
 )
 
+
+class FolderBusy(ConfigError):
+    """Another gevsim process holds the folder's lock (:func:`exclusive`): a run that may wait and try again
+    (the merge of a study's or a dataset's parts) tells this from any other refusal."""
+
+
 _held_lock = threading.Lock()
 _held: dict[str, list] = {}  # folder -> [descriptor, depth, kind]: this process's locks
 
@@ -126,8 +132,8 @@ def exclusive(folder: str | os.PathLike, *, what: str = "run", kind: str | None 
                 os.close(fd)
                 if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
                     raise ConfigError(f"cannot lock {LOCK_NAME} ({exc.strerror or exc})", source=str(folder)) from None
-                raise ConfigError(f"another gevsim {held_by} is writing into this folder{holder}; wait for it to "
-                                  "finish or choose another --out", source=str(folder)) from None
+                raise FolderBusy(f"another gevsim {held_by} is writing into this folder{holder}; wait for it to "
+                                 "finish or choose another --out", source=str(folder)) from None
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()} {what}\n".encode(), 0)
