@@ -60,7 +60,7 @@ _C = tuple((-1.0 if k % 2 else 1.0) / math.factorial(2 * k) for k in range(2, 10
 _A = tuple((-1.0 if k % 2 else 1.0) / (2 * k + 1) for k in range(1, 22))  # atan
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def _horner(c, x):
     """c[0] + c[1] x + c[2] x^2 + ... (c a tuple), highest power first."""
     y = c[len(c) - 1]
@@ -69,14 +69,14 @@ def _horner(c, x):
     return y
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def _reduce_ln2(x):
     """k, r_hi, r_lo with x = k ln2 + (r_hi - r_lo), |r| <= ln2 / 2; r_hi is exact."""
     k = math.floor(x * _INV_LN2 + 0.5)
     return k, x - k * _LN2_HI, k * _LN2_LO
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def exp_scalar(x):
     """exp(x) of a float64."""
     if x != x:
@@ -91,7 +91,7 @@ def exp_scalar(x):
     return math.ldexp(y, int(k))  # exact (a single rounding where the result is subnormal)
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def expm1_scalar(x):
     """exp(x) - 1 of a float64, accurate near 0."""
     if x != x:
@@ -111,7 +111,7 @@ def expm1_scalar(x):
     return two_k * p + (two_k - 1.0)
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def log_scalar(x):
     """Natural log of a float64 (-inf at 0, NaN below)."""
     if x != x or x < 0.0:
@@ -133,20 +133,20 @@ def log_scalar(x):
     return k * _LN2_HI - ((hfsq - (s * (hfsq + r) + k * _LN2_LO)) - f)
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def _reduce_pio2(x):
     """n, r with x = n pi/2 + r, |r| <= pi/4 (accurate for |x| < 1.6e6, the same bits beyond)."""
     n = math.floor(x * _TWO_OVER_PI + 0.5)
     return n, ((x - n * _PIO2_1) - n * _PIO2_2) - n * _PIO2_3
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def _sin_poly(r):
     z = r * r
     return r + r * z * _horner(_S, z)
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def _cos_poly(r):
     z = r * r
     hz = 0.5 * z
@@ -154,13 +154,13 @@ def _cos_poly(r):
     return w + (((1.0 - w) - hz) + z * z * _horner(_C, z))  # 1 - hz with its rounding error restored
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def _quadrant(n):
     q = int(n) % 4
     return q + 4 if q < 0 else q
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def sin_scalar(x):
     """sin(x) of a float64 (NaN at +-inf)."""
     if not abs(x) < math.inf:
@@ -176,7 +176,7 @@ def sin_scalar(x):
     return -_cos_poly(r)
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def cos_scalar(x):
     """cos(x) of a float64 (NaN at +-inf)."""
     if not abs(x) < math.inf:
@@ -192,13 +192,13 @@ def cos_scalar(x):
     return _sin_poly(r)
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def _atan_poly(u):
     """atan(u) for |u| <= tan(pi/8)."""
     return u + u * (u * u) * _horner(_A, u * u)
 
 
-@njit(inline="always")
+@njit(inline="always", cache=True)
 def atan_scalar(x):
     """atan(x) of a float64, in [-pi/2, pi/2]."""
     if x != x:
