@@ -21,8 +21,8 @@ from gevsim import _resources
 from gevsim.errors import ConfigError
 
 __all__ = ["MAX_REPEATS", "MAX_SEQUENCES", "MAX_SPP", "MAX_STUDY_RUNS", "EmulationRequest", "at_most",
-           "check_emulation", "check_export", "check_frame_memory", "check_frame_times", "check_render_frames",
-           "check_writable", "fits_disk", "fits_memory"]
+           "budget_chunk_steps", "check_emulation", "check_export", "check_frame_memory", "check_frame_times",
+           "check_render_frames", "check_writable", "chunk_budget_bytes", "fits_disk", "fits_memory", "step_bytes"]
 
 #: The most runs one study sweeps (the product of its axes' lengths); each is an emulation of seconds.
 MAX_STUDY_RUNS = 10_000
@@ -37,6 +37,14 @@ MAX_SPP = 2**20
 #: Bytes a chunk holds per pixel and step: the float64 photocurrent, and 4 more per emulator (measured
 #: peaks over a 256-step chunk: 12.4 B with DVS alone, 24.9 B with all four, at 64x48 and 20000 steps a chunk).
 CHUNK_BYTES_BASE, CHUNK_BYTES_PER_EMULATOR = 8, 4
+#: A run's chunks, unless its config sets ``chunk_steps``, take this share of the memory the process may use
+#: (:func:`gevsim._resources.usable_memory`: installed memory, or ``ulimit -v`` where lower) ...
+CHUNK_MEMORY_FRACTION = 1 / 16
+#: ... and at most this much on any machine: a chunk of 256 MiB holds 11 million pixel-steps with all four emulators,
+#: and larger chunks run no faster (benchmarks/memory_chunks.py); a 1280x720 run then peaks at about 1 GB.
+CHUNK_MEMORY_CAP_BYTES = 256 * 2**20
+#: The most steps a chunk sized to the budget takes (the former fixed ``chunk_steps``).
+MAX_CHUNK_STEPS = 256
 #: Bytes per step of a whole run (its float64 step ends) and per millisecond and stream (the int64
 #: ``ms_to_idx`` index every event file carries, built in memory when the file is closed).
 STEP_BYTES, MS_BYTES = 8, 8
@@ -56,7 +64,7 @@ class EmulationRequest(Protocol):
     def step_s(self) -> float: ...
 
     @property
-    def chunk_steps(self) -> int: ...
+    def chunk_steps(self) -> int | None: ...
 
     @property
     def emulators(self) -> Sequence[str]: ...
@@ -105,19 +113,46 @@ def check_writable(out: str | os.PathLike, *, inside: bool = False) -> None:
             from None
 
 
+def chunk_budget_bytes() -> int:
+    """The memory a run's chunk may take unless its config sets ``chunk_steps``: :data:`CHUNK_MEMORY_FRACTION` of
+    what the process may use (:func:`gevsim._resources.usable_memory`), at most :data:`CHUNK_MEMORY_CAP_BYTES`."""
+    have, _ = _resources.usable_memory()
+    return CHUNK_MEMORY_CAP_BYTES if have is None else int(min(have * CHUNK_MEMORY_FRACTION, CHUNK_MEMORY_CAP_BYTES))
+
+
+def step_bytes(*, width: int, height: int, emulators: int, substeps: int = 1) -> int:
+    """Bytes one step of a chunk holds (:data:`CHUNK_BYTES_BASE` and :data:`CHUNK_BYTES_PER_EMULATOR` a pixel and
+    sub-step)."""
+    return int(width) * int(height) * int(substeps) * (CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR * int(emulators))
+
+
+def budget_chunk_steps(config: EmulationRequest, *, width: int, height: int, substeps: int = 1) -> int:
+    """The steps of a chunk: ``config.chunk_steps`` where it sets one, else as many as fit
+    :func:`chunk_budget_bytes`, at least 1 and at most :data:`MAX_CHUNK_STEPS` (chunks bound memory, not results)."""
+    if config.chunk_steps is not None:
+        return int(config.chunk_steps)
+    per_step = step_bytes(width=width, height=height, emulators=len(config.emulators), substeps=substeps)
+    return max(1, min(MAX_CHUNK_STEPS, chunk_budget_bytes() // max(per_step, 1)))
+
+
 def check_emulation(config: EmulationRequest, *, width: int, height: int, duration_s: float,
                     substeps: int = 1) -> None:
     """Memory of an emulation of ``config`` (an :class:`EmulationRequest`) at ``width`` x ``height`` px: one chunk
-    (``chunk_steps``) and the whole run's time grid and millisecond index (the duration and ``step_s``),
-    each step split into ``substeps`` (known once the basis is rendered: the sensor's fastest noise path)."""
+    (``chunk_steps``, or the budget's: :func:`budget_chunk_steps`) and the whole run's time grid and millisecond
+    index (the duration and ``step_s``), each step split into ``substeps`` (known once the basis is rendered: the
+    sensor's fastest noise path)."""
     steps = duration_s / config.step_s * substeps
-    px = int(width) * int(height)
-    chunk = min(config.chunk_steps * substeps, steps) * px * (CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR
-                                                              * len(config.emulators))
+    chunk_steps = budget_chunk_steps(config, width=width, height=height, substeps=substeps)
+    chunk = min(chunk_steps * substeps, steps) * int(width) * int(height) * (
+        CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR * len(config.emulators))
     split = f" split into {substeps} sub-steps each" if substeps > 1 else ""
-    fits_memory(chunk, what=f"chunks of {config.chunk_steps} steps{split} x {width}x{height} px x "
-                            f"{len(config.emulators)} emulators", source=config.source, key="emulation.chunk_steps",
-                hint=": lower chunk_steps (it bounds memory, not results)")
+    size = f"{width}x{height} px x {len(config.emulators)} emulators"
+    if config.chunk_steps is not None:
+        fits_memory(chunk, what=f"chunks of {config.chunk_steps} steps{split} x {size}", source=config.source,
+                    key="emulation.chunk_steps", hint=": lower chunk_steps (it bounds memory, not results)")
+    else:  # the budget's chunk: over memory only when one step is
+        fits_memory(chunk, what=f"one step{split} x {size}", source=config.source, key="emulation.step_s",
+                    hint=": a chunk holds at least one step" + (": shorten step_s (fewer sub-steps)" if split else ""))
     whole = steps * STEP_BYTES + (duration_s * 1e3 + 1) * MS_BYTES * len(config.emulators)
     fits_memory(whole, what=f"{steps:.4g} steps (duration_s = {duration_s:g} over step_s = {config.step_s:g}"
                             f"{split})", source=config.source, key="emulation.duration_s",

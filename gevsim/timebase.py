@@ -36,18 +36,20 @@ class TimeGrid(FromTable):
     ----------
     duration_s : how long to emulate; None: the scene's ``[sequence] duration_s``.
     step_s : the pixel model's time step (a whole number of them must fill the duration).
-    chunk_steps : steps processed per chunk (bounds memory, not results).
+    chunk_steps : steps processed per chunk (bounds memory, not results); None: sized to the memory budget
+        (:func:`gevsim.resources.budget_chunk_steps`).
     frame_rate_hz : ground-truth frames per second (0: none; at most :data:`MAX_FRAMES` frames).
     """
 
     duration_s: float | None = None
     step_s: float = 2e-5  # issue 22: noise and flicker rates within 6 % of 5 us (benchmarks/step_convergence.py)
-    chunk_steps: int = 256
+    chunk_steps: int | None = None  # issue 37: from the memory budget (at most 256), unless given
     frame_rate_hz: float = 1000.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "step_s", real(self.step_s, "step_s", low=0.0, low_open=True))
-        object.__setattr__(self, "chunk_steps", integer(self.chunk_steps, "chunk_steps", low=1))
+        if self.chunk_steps is not None:
+            object.__setattr__(self, "chunk_steps", integer(self.chunk_steps, "chunk_steps", low=1))
         object.__setattr__(self, "frame_rate_hz", real(self.frame_rate_hz, "frame_rate_hz", low=0.0,
                                                        high=MAX_FRAME_RATE_HZ))
         if self.duration_s is not None:  # after frame_rate_hz is known finite: the frame count needs it

@@ -58,8 +58,9 @@ def test_a_coarse_step_is_sized_with_its_noise_sub_steps(tmp_path, capsys, one_g
     cfg = emulation(tmp_path, "duration_s = 100.0\nstep_s = 10.0")
     assert main(["emulate", str(cfg), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "run.toml: emulation.chunk_steps: chunks of 256 steps split into " in err
-    assert "sub-steps each x 24x18 px x 1 emulators need about" in err and "this machine has 1 GiB" in err
+    assert err.count("\n") == 1 and "run.toml: emulation.step_s: one step split into " in err  # chunks: from memory
+    assert "sub-steps each x 24x18 px x 1 emulators need about" in err
+    assert "this machine has 1 GiB: a chunk holds at least one step: shorten step_s (fewer sub-steps)" in err
     assert not (tmp_path / "x.h5").exists()
 
 

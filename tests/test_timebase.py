@@ -15,7 +15,7 @@ from gevsim.timebase import TimeGrid
 def test_defaults_are_defined_once():
     grid = TimeGrid()
     assert EmulationConfig(scene="office").time == grid == DatasetConfig(scenes=("office",)).time
-    assert (grid.duration_s, grid.step_s, grid.chunk_steps, grid.frame_rate_hz) == (None, 2e-5, 256, 1000.0)
+    assert (grid.duration_s, grid.step_s, grid.chunk_steps, grid.frame_rate_hz) == (None, 2e-5, None, 1000.0)
 
 
 def test_from_section_takes_its_keys_from_a_shared_table_and_converts():

@@ -10,7 +10,7 @@ emulators = ["dvs", "gradient", "gradient_rc", "csdvs"]
 seed = 1
 duration_s = 0.02              # default: the scene's
 step_s = 2e-5                  # pixel-model time step
-chunk_steps = 256              # steps processed per chunk (memory bound)
+chunk_steps = 256              # steps per chunk (bounds memory, not results); default: from the memory budget
 frame_rate_hz = 1000.0         # ground-truth frames (0: none)
 aps = false                    # also emulate APS frames (needs the preset's [aps])
 aps_exposure_s = 5e-4
@@ -97,7 +97,7 @@ class EmulationConfig:
     seed: int = 0
     duration_s: float | None = TimeGrid.duration_s
     step_s: float = TimeGrid.step_s
-    chunk_steps: int = TimeGrid.chunk_steps
+    chunk_steps: int | None = TimeGrid.chunk_steps  # None: sized to the memory budget (resources.budget_chunk_steps)
     frame_rate_hz: float = TimeGrid.frame_rate_hz
     aps: bool = False
     aps_exposure_s: float = 5e-4
@@ -132,6 +132,8 @@ class EmulationConfig:
 
         em = {k: getattr(self, k) for k in ("scene", "sensor", "seed", "step_s", "chunk_steps", "frame_rate_hz",
                                              "aps", "aps_exposure_s", "cold_start", "burn_in_s", "footprint")}
+        if self.chunk_steps is None:  # from the memory budget: TOML has no None
+            del em["chunk_steps"]
         em["emulators"] = list(self.emulators)
         if self.duration_s is not None:
             em["duration_s"] = self.duration_s

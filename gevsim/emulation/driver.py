@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import math
 import os
 import time
 from collections.abc import Callable
@@ -45,6 +44,7 @@ from gevsim.emulation.start import (  # noqa: F401 (step_grid, refine, held_phot
     settle,
     step_grid,
 )
+from gevsim.emulation.stepping import StageClock, stage_names, stream_chunks
 from gevsim.emulation.summary import RunSummary
 from gevsim.emulation.truth import write_frames
 from gevsim.errors import ConfigError, suggest
@@ -58,7 +58,7 @@ from gevsim.pixel.noise import dark_current_a
 from gevsim.pixel.presets import with_overrides
 from gevsim.render import MitsubaScene, load, override, render_basis
 from gevsim.render.scene_config import resolved_config, scene_optics
-from gevsim.resources import check_emulation
+from gevsim.resources import budget_chunk_steps, check_emulation
 
 log = logging.getLogger(__name__)
 #: ``progress(done, total)``, called as work completes.
@@ -174,8 +174,11 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     ``setup`` (from :func:`prepare` with the same config) skips loading the basis again.
     ``before_commit(tmp)`` gets the finished file under its temporary name before it replaces ``out``
     (:meth:`gevsim.io.EventWriter.close`): a failure there leaves an earlier ``out`` untouched.
+    Chunks have ``config.chunk_steps`` steps, or as many as the memory budget allows
+    (:func:`gevsim.resources.budget_chunk_steps`); they change no result.
     """
     start = time.perf_counter()
+    clock = StageClock(stage_names(n for n in EMULATORS if n in config.emulators))
     if os.path.isdir(out):
         raise ConfigError("is a folder; the output is an .h5 file", source=str(out))
     if setup is None:
@@ -188,12 +191,17 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     sub = substeps(config, setup)
     check_emulation(config, width=setup.manifest.render.width, height=setup.manifest.render.height,
                     duration_s=setup.duration_s, substeps=sub)
+    chunk = budget_chunk_steps(config, width=setup.manifest.render.width, height=setup.manifest.render.height,
+                               substeps=sub)
+    log.info("chunks of %d steps (%s)", chunk, "chunk_steps" if config.chunk_steps else "the memory budget")
     grid_waveforms = setup.waveforms
     setup = counterfactual(setup, flicker=flicker, noise=noise)
-    render_s = time.perf_counter() - start
+    t = clock.lap("render", start)
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width
-    pr, start_state, emulators, readouts, aps, aps_rng = _chain(config, setup, grid_waveforms=grid_waveforms, sub=sub)
+    pr, start_state, emulators, readouts, aps, aps_rng = _chain(config, setup, grid_waveforms=grid_waveforms, sub=sub,
+                                                                chunk_steps=chunk)
+    t = clock.lap("start", t)
     end_us = int(round(setup.duration_s * 1e6))
 
     n_steps = config.time.steps(setup.duration_s)
@@ -206,32 +214,36 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
              "scene_toml": resolved_config(m), "emulators": list(emulators),
              "render_noise_json": json.dumps(setup.render_quality, default=float, sort_keys=True),
              "start": start_state, "substeps": sub}
-    event_s = {n: 0.0 for n in emulators}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
                      extra_attrs=extra) as wr:
         for name, em in emulators.items():  # what reconstruction needs: theta, nominal contrast steps
             stored = EMULATORS[name].thresholds
             if stored is not None:
                 layout.write_thresholds(wr, name, stored(em, preset))
+        t = clock.lap("hdf5", t)
         if config.frame_rate_hz > 0:
             write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
-        pixel_s = _stream_chunks(config, setup, wr, pr, emulators, readouts, grid_waveforms=grid_waveforms,
-                                 sub=sub, end_us=end_us, counts=counts, event_s=event_s, progress=progress)
+        t = clock.lap("ground_truth", t)
+        t = stream_chunks(config, setup, wr, pr, emulators, readouts, grid_waveforms=grid_waveforms, sub=sub,
+                          chunk_steps=chunk, end_us=end_us, counts=counts, clock=clock, since=t, progress=progress)
         readout = {EMULATORS[n].stream: r.summary() for n, r in readouts.items()}
         log_readouts(readout)
+        t = clock.lap("readout", t)
         wr.set_attrs("/", readout_json=json.dumps(readout, sort_keys=True, default=float))
-        wr.close(t_end_us=end_us, before_commit=before_commit)
-    pixel_steps = n_steps * sub * h * w
+        wr.close(t_end_us=end_us, before_commit=clock.timed("before_commit", before_commit) if before_commit else None)
+    clock.lap("hdf5", t)
+    stage = clock.seconds
+    pixel_s = stage["mix"] + stage["photoreceptor"]
     return RunSummary(
         out=str(out), width=w, height=h, steps=n_steps, duration_s=setup.duration_s, frames=len(frame_t),
         counts=counts, rates_hz={k: v / setup.duration_s for k, v in counts.items()},
-        render_s=render_s, pixel_s=pixel_s, event_s=event_s, render_noise=setup.render_quality,
-        pixel_steps_per_s=pixel_steps / max(pixel_s, 1e-12), total_s=time.perf_counter() - start,
-        readout=readout,
+        render_s=stage["render"], pixel_s=pixel_s, event_s={n: stage[n] for n in emulators},
+        render_noise=setup.render_quality, pixel_steps_per_s=n_steps * sub * h * w / max(pixel_s, 1e-12),
+        total_s=time.perf_counter() - start, readout=readout, chunk_steps=chunk, stage_s=dict(stage),
     )
 
 
-def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub: int) -> tuple:
+def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub: int, chunk_steps: int) -> tuple:
     """The run's pixel chain, each part seeded by its slot of the run's seed sequence: the photoreceptor
     (settled unless a cold start), the emulators, their readouts (the sensor's bus share of the window),
     and the APS sensor and its read-noise generator (or None)."""
@@ -247,7 +259,7 @@ def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub:
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}
     if span > 0:
-        burn_in(pr, emulators, setup, span_s=span, step_s=config.step_s, sub=sub, chunk_steps=config.chunk_steps,
+        burn_in(pr, emulators, setup, span_s=span, step_s=config.step_s, sub=sub, chunk_steps=chunk_steps,
                 grid_waveforms=grid_waveforms, periodic=period is not None)
         start_state += f"; the chain burnt in for {span * 1e3:.6g} ms before t = 0 (events discarded)"
     readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
@@ -259,38 +271,6 @@ def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub:
            if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
     aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
     return pr, start_state, emulators, readouts, aps, aps_rng
-
-
-def _stream_chunks(config: EmulationConfig, setup: Setup, wr: EventWriter, pr: Photoreceptor, emulators: dict,
-                   readouts: dict, *, grid_waveforms: tuple, sub: int, end_us: int, counts: dict,
-                   event_s: dict, progress: Progress | None) -> float:
-    """Step the chain over the run in chunks of ``chunk_steps`` and append each stream's events to
-    ``wr`` (counting them in ``counts``, timing them in ``event_s``); returns the pixel model's seconds."""
-    n_steps = config.time.steps(setup.duration_s)
-    t_end_all = config.step_s * np.arange(1, n_steps + 1)
-    pixel_s = 0.0
-    chunks = range(0, n_steps, config.chunk_steps)
-    for c, a in enumerate(chunks):
-        b = min(a + config.chunk_steps, n_steps)
-        t0 = t_end_all[a] - config.step_s
-        t_end = step_grid(grid_waveforms, t0, refine(t_end_all[a:b], t0, sub))
-        current = held_photocurrent(setup, t0, t_end)
-        tick = time.perf_counter()
-        v = pr.process(current, t_end)
-        pixel_s += time.perf_counter() - tick
-        for name, em in emulators.items():
-            tick = time.perf_counter()
-            until = None if b == n_steps else math.floor(t_end[-1] * 1e6)
-            events = readouts[name].process(em.process(v, t_end), end_us=end_us, until_us=until)
-            event_s[name] += time.perf_counter() - tick
-            stream = EMULATORS[name].stream
-            if c == 0 and EMULATORS[name].decodes:  # decoding starts from it
-                layout.write_initial_state(wr, name, em.initial_state)
-            wr.append(stream, events)
-            counts[stream] += len(events)
-        if progress:
-            progress(c + 1, len(chunks))
-    return pixel_s
 
 
 def substeps(config: EmulationConfig, setup: Setup) -> int:

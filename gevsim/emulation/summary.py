@@ -48,12 +48,21 @@ class RunSummary(_Fields):
     frames : ground-truth frames written.
     counts : events per stream (HDF5 group name).
     rates_hz : events per second per stream.
-    render_s, pixel_s, total_s : seconds spent rendering (or loading) the basis, in the pixel model, in all.
-    event_s : seconds spent in each emulator, by its name.
+    render_s, pixel_s, total_s : seconds spent rendering (or loading) the basis, in the pixel model (each step's
+        photocurrent mix and the photoreceptor with its noise), in all.
+    event_s : seconds spent in each emulator, by its name (its readout: ``stage_s["readout"]``).
     render_noise : achieved render noise (:func:`gevsim.render.convergence.summarize_quality`).
-    pixel_steps_per_s : pixel-model throughput.
+    pixel_steps_per_s : pixel-model throughput (pixel-steps over ``pixel_s``).
     readout : each stream's readout counts (:meth:`gevsim.events.readout.Readout.summary`), as in the
         file's ``readout_json`` attribute.
+    chunk_steps : the steps of each chunk (the config's, or the memory budget's:
+        :func:`gevsim.resources.budget_chunk_steps`).
+    stage_s : seconds per stage, in the order they run (:data:`gevsim.emulation.stepping.STAGES`, each emulator
+        by its name): ``render`` (the basis, rendered or loaded, and the checks), ``start`` (the pixel chain,
+        settled and burnt in), ``ground_truth`` (the frames), ``mix`` (each step's photocurrent),
+        ``photoreceptor`` (with its noise), the emulators, ``readout``, ``hdf5`` (appending events, closing the
+        file) and ``before_commit`` (the caller's check of the finished file). Their sum is at most ``total_s``
+        (what is left: progress reports, building this summary).
     """
 
     out: str
@@ -71,6 +80,8 @@ class RunSummary(_Fields):
     pixel_steps_per_s: float
     total_s: float
     readout: dict[str, dict[str, Any]]
+    chunk_steps: int
+    stage_s: dict[str, float]
 
 
 @dataclasses.dataclass(frozen=True)
