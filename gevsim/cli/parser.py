@@ -173,7 +173,17 @@ def _dataset(sub: Any) -> None:
     _executor_options(d)
     _run_overrides(d)
     d.add_argument("--cache", metavar="DIR", help="basis image cache (shared by the workers)")
+    _part_options(d, "sequences j", "OUT/dataset.json")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def _part_options(parser: argparse.ArgumentParser, items: str, result: str) -> None:
+    """--part I/N and --merge of ``dataset`` and ``study`` (docs/cluster.md)."""
+    parser.add_argument("--part", metavar="I/N", help=f"make only part I of N ({items} with j %% N == I), e.g. "
+                        f"$SLURM_ARRAY_TASK_ID/N in an array job, in OUT.parts/I-of-N; the part that finishes last "
+                        f"merges every part into OUT and writes {result} (docs/cluster.md)")
+    parser.add_argument("--merge", action="store_true", help="only merge what the --part runs finished into OUT "
+                        f"and write {result}; make nothing")
 
 
 def _validate(sub: Any) -> None:
@@ -203,4 +213,5 @@ def _study(sub: Any) -> None:
     _run_overrides(s)
     s.add_argument("--cache", metavar="DIR", help="basis image cache (default with workers: OUT/render-cache)")
     s.add_argument("--keep-files", action="store_true", help="keep every run's HDF5 files")
+    _part_options(s, "jobs j, a job being one repeat of one run", "the report")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -51,6 +51,7 @@ from gevsim.emulation.config import MAX_LIGHT_SCALE, EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError, check_keys, suggest
 from gevsim.experiments.executors import run_all
+from gevsim.experiments.parts import Work, merge_parts
 from gevsim.illumination.base import MAX_FREQUENCY_HZ, log_uniform
 from gevsim.illumination.spec import RANDOM_WAVEFORMS, random_spec
 from gevsim.io import EventReader, atomic_write_text, exclusive, sweep_stale
@@ -215,24 +216,34 @@ def _paths(out_dir, index: int) -> tuple[Path, Path, Path]:
     return out / "shards" / f"{name}.json", out / "shards" / f"{name}.h5", out / "evreal" / name
 
 
-def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int) -> dict | None:
+def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int, *,
+             digests: dict[tuple[str, str], str] | None = None) -> dict | None:
     """The done-marker of sequence ``index`` if it is finished for this config, else None.
 
     Finished means: the marker parses, names the config this sequence would run now, the same
     contents of its scene's files (:func:`gevsim.render.inputs.scene_digest`), of its sensor preset
     (:func:`gevsim.pixel.presets.preset_digest`) and this gevsim version, and the shard (and EVREAL folder)
-    exist.
+    exist. ``digests`` (a dict kept across calls) keeps the scenes' and presets' digests: one hash of each
+    file per check of many sequences.
     """
     from gevsim.pixel.presets import preset_digest
     from gevsim.render.inputs import scene_digest
+
+    def digest(what: str, name: str, fn: Callable[[str], str]) -> str:
+        if digests is None:
+            return fn(name)
+        if (what, name) not in digests:
+            digests[what, name] = fn(name)
+        return digests[what, name]
 
     marker, shard, evreal = _paths(out_dir, index)
     try:
         record = json.loads(marker.read_text())
         params = sequence_parameters(config, index)
         same = (tomllib.loads(record["config_toml"]) == tomllib.loads(sequence_config(config, params).to_toml())
-                and record["gevsim_version"] == __version__ and record["scene_sha256"] == scene_digest(params["scene"])
-                and record["sensor_sha256"] == preset_digest(params["sensor"]))
+                and record["gevsim_version"] == __version__
+                and record["scene_sha256"] == digest("scene", params["scene"], scene_digest)
+                and record["sensor_sha256"] == digest("sensor", params["sensor"], preset_digest))
     except (OSError, ValueError, KeyError, TypeError):
         return None
     evreal_done = evreal.is_dir() or not config.evreal or record.get("evreal_skipped")
@@ -300,34 +311,62 @@ def generate(config: DatasetConfig, out_dir: str | os.PathLike, *, executor: cf.
     is called as each completes (finished ones count at once). One run at a
     time per ``out_dir``: a second one (another process) is refused with a
     :class:`~gevsim.errors.ConfigError` naming the folder (:func:`gevsim.io.exclusive`).
+    What ``--part`` runs finished beside it (``OUT.parts``, :mod:`gevsim.experiments.parts`) is merged in first.
     Returns ``out``, ``sequences``, ``done`` (made now), ``skipped``, ``counts``
-    (events per stream over ``indices``), ``events`` (their sum) and ``seconds``.
+    (events per stream over ``indices``), ``events`` (their sum), ``seconds`` and ``merged`` (sequences moved
+    in from the parts).
     """
     out = Path(out_dir)
     with exclusive(out, what="dataset", kind="dataset"):  # one run at a time per folder: a second one is refused
-        return _generate(config, out, executor=executor, indices=indices, cache_dir=cache_dir, progress=progress)
+        merged = merge_parts(out, dataset_work(config))
+        summary = _generate(config, out, executor=executor, indices=indices, cache_dir=cache_dir, progress=progress)
+        return {**summary, "merged": merged["moved"]}
 
 
-def _generate(config: DatasetConfig, out: Path, *, executor, indices, cache_dir, progress) -> dict:
+def dataset_work(config: DatasetConfig) -> Work:
+    """A dataset's sequences as the work a merge of ``--part`` folders moves (:mod:`gevsim.experiments.parts`)."""
+    digests: dict = {}
+
+    def files(index: int) -> tuple[str, ...]:
+        marker, shard, evreal = _paths("", index)
+        return (str(evreal), str(shard), str(marker))
+
+    return Work("dataset", config.sequences, lambda folder, i: finished(config, folder, i, digests=digests) is not None,
+                files)
+
+
+def _generate(config: DatasetConfig, out: Path, *, executor, indices, cache_dir, progress, index: bool = True) -> dict:
+    """Make ``indices`` in ``out`` (locked by the caller); ``index``: write ``dataset.json`` (not in a part)."""
     start = time.perf_counter()
     sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     indices = list(dict.fromkeys(range(config.sequences) if indices is None else indices))
     for i in indices:
         sequence_parameters(config, i)  # validates the index
-    todo = [i for i in indices if finished(config, out, i) is None]
+    digests: dict = {}
+    todo = [i for i in indices if finished(config, out, i, digests=digests) is None]
     total, done = len(indices), len(indices) - len(todo)
     cache = None if cache_dir is None else str(cache_dir)
     results = run_all(run_sequence, [((config, str(out), i), {"cache_dir": cache}) for i in todo], executor=executor,
                       progress=progress, done=done, total=total)
-    records = [r for r in (finished(config, out, i) for i in range(config.sequences)) if r is not None]
+    records = write_index(config, out) if index else [
+        r for r in (finished(config, out, i, digests=digests) for i in indices) if r is not None]
     counts: dict[str, int] = {}
     wanted = set(indices)
     for r in (x for x in records if x["index"] in wanted):
         for k, v in r["counts"].items():
             counts[k] = counts.get(k, 0) + v
-    atomic_write_text(out / "dataset.json", json.dumps({
-        "gevsim_version": __version__, "source": config.source, "config_toml": config.text,
-        "complete": len(records) == config.sequences, "sequences": records}, indent=1))
     computed = sum(r["status"] == "done" for r in results)
     return {"out": str(out), "sequences": total, "done": computed, "skipped": total - computed, "counts": counts,
             "events": sum(counts.values()), "seconds": time.perf_counter() - start}
+
+
+def write_index(config: DatasetConfig, out: Path) -> list[dict]:
+    """Write ``dataset.json`` (the finished sequences' records, ``complete`` when they are all there) into
+    ``out`` (locked by the caller); returns the records."""
+    digests: dict = {}
+    records = [r for r in (finished(config, out, i, digests=digests) for i in range(config.sequences))
+               if r is not None]
+    atomic_write_text(out / "dataset.json", json.dumps({
+        "gevsim_version": __version__, "source": config.source, "config_toml": config.text,
+        "complete": len(records) == config.sequences, "sequences": records}, indent=1))
+    return records

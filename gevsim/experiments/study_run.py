@@ -17,10 +17,12 @@ import numpy as np
 
 from gevsim.errors import ConfigError, suggest
 from gevsim.experiments.executors import run_all
+from gevsim.experiments.parts import MERGE_WAIT_S, Part, Work, check_out, merge_parts, owned, part_folder, unfinished
 from gevsim.experiments.study import Study, flicker_group, run_config, run_emulators, run_id, run_scene
 from gevsim.io import atomic_path, exclusive, sweep_stale
+from gevsim.io.atomic import FolderBusy
 
-__all__ = ["check_study_scenes", "collect", "collect_variations", "run_study"]
+__all__ = ["check_study_scenes", "collect", "collect_variations", "merge_study", "run_study", "run_study_part"]
 
 
 def _prerender(study: Study, runs: list[dict], cache_dir: str | os.PathLike) -> None:
@@ -50,19 +52,21 @@ def run_study(study: Study, out: str | os.PathLike, *, cache_dir: str | os.PathL
     thread each, after the bases are rendered here once into ``cache_dir`` (default
     ``out/render-cache``). The numbers do not depend on the executor. ``progress(done, total)``
     counts jobs. One study at a time per ``out``: a second one (another process) is refused with a
-    :class:`~gevsim.errors.ConfigError` naming the folder (:func:`gevsim.io.exclusive`).
+    :class:`~gevsim.errors.ConfigError` naming the folder (:func:`gevsim.io.exclusive`). What ``--part``
+    runs finished beside it (``OUT.parts``, :mod:`gevsim.experiments.parts`) is merged in first.
     """
     out = Path(out)
     with exclusive(out, what="study", kind="study"):  # one study at a time per folder: a second one is refused
-        return _run_study(study, out, cache_dir=cache_dir, executor=executor, progress=progress,
-                          keep_files=keep_files)
+        rids, jobs = study_jobs(study)
+        merge_parts(out, study_work(jobs))
+        _run_jobs(study, out, jobs, cache_dir=cache_dir, executor=executor, progress=progress,
+                  keep_files=keep_files)
+        return collect(study, out, rids=rids)
 
 
-def _run_study(study: Study, out: Path, *, cache_dir, executor, progress, keep_files) -> list[dict]:
-    from gevsim.experiments import repeat as rep
-
-    (out / "runs").mkdir(parents=True, exist_ok=True)
-    sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
+def study_jobs(study: Study) -> tuple[list[str], list[tuple[dict, str, int]]]:
+    """The sweep's run ids and every job (run parameters, run id, repeat) in their fixed order: each sweep
+    run's repeats, then those of the runs around the headline that the sweep does not hold."""
     runs = study.runs()
     rids = [run_id(study, p) for p in runs]  # once per run: it hashes every file of the scene
     jobs = [(p, rid, r) for p, rid in zip(runs, rids) for r in range(study.base["repeats"])]
@@ -71,6 +75,29 @@ def _run_study(study: Study, out: Path, *, cache_dir, executor, progress, keep_f
         rid = run_id(study, v.params)
         jobs += [(v.params, rid, r) for r in range(v.repeats) if (rid, r) not in seen]
         seen.update((rid, r) for r in range(v.repeats))
+    return rids, jobs
+
+
+def study_work(jobs: list[tuple[dict, str, int]]) -> Work:
+    """A study's jobs as the work a merge of ``--part`` folders moves (:mod:`gevsim.experiments.parts`); a
+    part's render cache goes with its emptied folder."""
+    from gevsim.experiments.repeat import STRIP_FILE, finished_repeat, repeat_paths
+
+    def files(k: int) -> tuple[str, ...]:
+        marker, arrays, folder = repeat_paths("", jobs[k][1], jobs[k][2])
+        strip = (str(marker.parent / STRIP_FILE),) if jobs[k][2] == 0 else ()  # repeat 0 draws the run's events
+        return (str(folder), str(arrays), *strip, str(marker))
+
+    return Work("study", len(jobs), lambda folder, k: finished_repeat(folder, jobs[k][1], jobs[k][2]) is not None,
+                files, scratch=("render-cache",))
+
+
+def _run_jobs(study: Study, out: Path, jobs: list, *, cache_dir, executor, progress, keep_files) -> int:
+    """Run the ``jobs`` not finished in ``out`` (locked by the caller); returns how many ran."""
+    from gevsim.experiments import repeat as rep
+
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    sweep_stale(out)  # what killed runs left half-written (stages nobody holds)
     todo = [(p, rid, r) for p, rid, r in jobs if rep.finished_repeat(out, rid, r) is None]
     total, done = len(jobs), len(jobs) - len(todo)
     kwargs: dict = {"keep_files": keep_files}
@@ -78,11 +105,53 @@ def _run_study(study: Study, out: Path, *, cache_dir, executor, progress, keep_f
         cache_dir = out / "render-cache" if cache_dir is None else cache_dir
         if todo:
             _prerender(study, [p for p, _, _ in todo], cache_dir)
-        kwargs["threads"] = 1
+        kwargs["threads"] = 0  # numba threads as the executor set them: floor(cores / workers)
     cache = None if cache_dir is None else str(cache_dir)
     calls = [((study, p, r, str(out)), {**kwargs, "rid": rid, "cache_dir": cache}) for p, rid, r in todo]
     run_all(rep.execute_repeat, calls, executor=executor, progress=progress, done=done, total=total)
-    return collect(study, out, rids=rids)
+    return len(todo)
+
+
+def run_study_part(study: Study, out: str | os.PathLike, part: Part, *, cache_dir: str | os.PathLike | None = None,
+                   executor: Executor | None = None, progress: Callable[[int, int], None] | None = None,
+                   keep_files: bool = False, wait_s: float = MERGE_WAIT_S) -> tuple[list[dict] | None, dict]:
+    """Run part ``part`` of a study's jobs (the ``k``-th with ``k % N == I``) that ``out`` does not hold finished,
+    in ``OUT.parts/I-of-N``; when no job is left unfinished, merge every part into ``out`` and collect it.
+
+    Returns the result rows (None unless this part merged the study) and ``jobs`` (this part's), ``made``,
+    ``unfinished`` (jobs of the study) and ``merge`` (as :func:`gevsim.experiments.dataset_parts.generate_part`'s).
+    """
+    out = Path(out)
+    check_out(out, "study")  # a folder the merge could not write into: refused before any work
+    folder = part_folder(out, part)
+    rids, jobs = study_jobs(study)
+    work = study_work(jobs)
+    mine = list(range(part.index, len(jobs), part.count))
+    taken = len(mine)
+    if owned(out, "study"):  # what an earlier merge moved into OUT is not run again
+        mine = [k for k in mine if not work.finished(out, k)]
+    with exclusive(folder, what="study", kind="study"):
+        made = _run_jobs(study, folder, [jobs[k] for k in mine], cache_dir=cache_dir, executor=executor,
+                         progress=progress, keep_files=keep_files)
+    info = {"jobs": taken, "made": made, "out": str(folder), "part": str(part), "unfinished": unfinished(out, work)}
+    if info["unfinished"]:
+        return None, {**info, "merge": "waiting"}
+    if not folder.exists():
+        return None, {**info, "merge": "merged"}
+    try:
+        return merge_study(study, out, wait_s=wait_s), {**info, "merge": "complete"}
+    except FolderBusy:
+        return None, {**info, "merge": "busy"}
+
+
+def merge_study(study: Study, out: str | os.PathLike, *, wait_s: float = 0.0) -> list[dict]:
+    """Move what the part folders finished into ``out`` and collect the study's rows (a ConfigError names a
+    run with unfinished repeats)."""
+    out = Path(out)
+    with exclusive(out, what="study", kind="study"):
+        rids, jobs = study_jobs(study)
+        merge_parts(out, study_work(jobs), wait_s=wait_s)
+        return collect(study, out, rids=rids)
 
 
 def collect_variations(study: Study, out: str | os.PathLike) -> list[dict]:

@@ -1,5 +1,7 @@
-"""Dataset generation: per-sequence determinism, executors agree, resumable shards, EVREAL folders, config errors."""
+"""Dataset generation: per-sequence determinism, executors agree, resumable shards, EVREAL folders, config errors,
+array-job parts (--part, --merge) equal to a single run bit for bit."""
 
+import hashlib
 import json
 import os
 import shutil
@@ -14,10 +16,13 @@ import gevsim.experiments.dataset as dataset_mod
 from gevsim.cli import main
 from gevsim.errors import ConfigError
 from gevsim.experiments.dataset import finished, generate, load_dataset_config, sequence_parameters
+from gevsim.experiments.dataset_parts import generate_part
 from gevsim.experiments.executors import make_executor
+from gevsim.experiments.parts import Part, parts_root
 from gevsim.io import EventReader, import_evreal
 from gevsim.io.evreal import EVENT_FILES, IMAGE_FILES, METADATA
-from gevsim.io.mark import open_mark
+from gevsim.io.mark import MARK, open_mark
+from gevsim.io.staging import LOCK_NAME
 
 DATA = Path(__file__).parents[1] / "data"
 N = 3
@@ -284,3 +289,69 @@ def test_an_edited_preset_file_redoes_the_sequence(tmp_path):
     preset.write_text(preset.read_text().replace("threshold_on_ln = 0.2 ", "threshold_on_ln = 0.3 "))
     assert finished(config, out, 0) is None
     assert generate(config, out, cache_dir=tmp_path / "c")["done"] == 1
+
+
+def files_sha256(folder: Path) -> dict[str, str]:
+    """{relative path: SHA-256} of every file but what records timings or ownership (markers, dataset.json,
+    the mark and the lock)."""
+    timed = {MARK, LOCK_NAME, "dataset.json"}
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name not in timed and not (p.parent.name == "shards" and p.suffix == ".json")}
+
+
+def without_seconds(record: dict) -> dict:
+    return {k: v for k, v in record.items() if k != "seconds"}
+
+
+def test_parts_one_after_the_other_reproduce_a_single_run_bit_for_bit(reference, tmp_path):
+    """Issue 37, item 6: `dataset --part 0/2` then `--part 1/2` (an array job) give the single run's shards and
+    EVREAL files byte for byte; the last part merges them into OUT and writes a complete dataset.json."""
+    config, ref, cache, _ = reference
+    out = tmp_path / "out"
+    first = generate_part(config, out, Part(0, 2), cache_dir=cache)
+    assert (first["done"], first["merge"], first["unfinished"]) == (2, "waiting", 1)
+    assert not out.exists() and sorted(p.name for p in (tmp_path / "out.parts" / "0-of-2" / "shards").glob("*.h5")) \
+        == ["seq_00000.h5", "seq_00002.h5"]
+    second = generate_part(config, out, Part(1, 2), cache_dir=cache)
+    assert (second["done"], second["merge"], second["unfinished"]) == (1, "complete", 0)
+    assert not parts_root(out).exists()
+    expected = files_sha256(ref)
+    assert len(expected) == 3 + 7 * 3 and files_sha256(out) == expected  # 3 shards, 3 EVREAL folders of 7 files
+    for i in range(N):
+        assert without_seconds(json.loads(marker(out, i).read_text())) == \
+            without_seconds(json.loads(marker(ref, i).read_text()))
+    index = json.loads((out / "dataset.json").read_text())
+    assert index["complete"] and [s["index"] for s in index["sequences"]] == list(range(N))
+    again = generate(config, out, cache_dir=cache)  # the merged folder is a dataset folder like any other
+    assert (again["done"], again["skipped"], again["merged"]) == (0, N, 0)
+
+
+def test_merge_takes_what_parts_finished_and_the_next_runs_make_only_the_rest(reference, tmp_path, capsys):
+    config, ref, cache, _ = reference
+    out = tmp_path / "out"
+    assert generate_part(config, out, Part(1, 3), cache_dir=cache)["merge"] == "waiting"  # sequence 1 only
+    assert main(["dataset", config.source, "--out", str(out), "--merge"]) == 0
+    assert f"merged 1 sequences into {out}; dataset.json lists 1 of 3; 2 not finished anywhere" \
+        in capsys.readouterr().err
+    index = json.loads((out / "dataset.json").read_text())
+    assert not index["complete"] and [s["index"] for s in index["sequences"]] == [1]
+    assert files_sha256(out) == {k: v for k, v in files_sha256(ref).items() if "00001" in k}
+    redo = generate_part(config, out, Part(1, 3), cache_dir=cache)  # OUT holds sequence 1: not made again
+    assert (redo["done"], redo["skipped"], redo["merge"], redo["unfinished"]) == (0, 1, "waiting", 2)
+    rest = generate(config, out, cache_dir=cache)  # a run without --part merges the parts, then makes the rest
+    assert (rest["done"], rest["skipped"]) == (2, 1) and not parts_root(out).exists()
+    assert files_sha256(out) == files_sha256(ref)
+
+
+@pytest.mark.parametrize("part, text", [
+    ("2/2", "--part: I must be below N (parts are numbered 0 to N-1, as sbatch --array=0-1), got '2/2'"),
+    ("0/0", "--part: N must be from 1 to 1000000, got '0/0'"),
+    ("a/b", "--part: expected I/N, part I of N (0 <= I < N, as $SLURM_ARRAY_TASK_ID/N), got 'a/b'"),
+    ("-1/2", "--part: expected I/N"),
+])
+def test_a_wrong_part_is_one_line_and_exit_2(tmp_path, capsys, part, text):
+    out = tmp_path / "out"
+    assert main(["dataset", str(write_config(tmp_path)), "--out", str(out), f"--part={part}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"gevsim: error: {text}")
+    assert not out.exists() and not parts_root(out).exists()
