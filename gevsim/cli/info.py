@@ -18,12 +18,12 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def cmd_presets(args: argparse.Namespace) -> int:
-    from gevsim.pixel.presets import load_preset, preset_names
+    from gevsim.pixel.presets import listed_preset, preset_names
 
     print(f"{'preset':14s} {'size':>9s} {'pitch um':>8s} {'fill':>5s} {'ON/OFF ln':>11s} {'mismatch':>8s} "
           f"{'cutoff Hz':>9s} {'dark A':>9s} {'APS':>4s}  description")
     for name in preset_names():
-        p = load_preset(name)
+        p = listed_preset(name)  # without the photometry that `emulate` needs: colour-science, numba
         e = p.events
         print(f"{name:14s} {f'{p.width}x{p.height}':>9s} {p.pixel_pitch_m * 1e6:8.2f} {p.fill_factor:5.2f} "
               f"{e.threshold_on_ln:5.3g}/{e.threshold_off_ln:<5.3g} {e.threshold_mismatch_ln:8.3g} "

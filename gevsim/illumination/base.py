@@ -14,7 +14,6 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from gevsim import _portable as pm
 from gevsim import _validate
 from gevsim.config import FieldError  # noqa: F401  (re-exported for the waveform modules)
 
@@ -55,6 +54,8 @@ class RandomRanges(Protocol):
 
 def log_uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     """One draw, uniform in the logarithm between ``bounds`` (one ``rng.uniform`` call)."""
+    from gevsim import _portable as pm
+
     return float(pm.exp(rng.uniform(*pm.log(bounds))))
 
 

@@ -10,8 +10,6 @@ from typing import Any
 
 import numpy as np
 
-from gevsim import _portable as pm
-
 from .base import (
     DC,
     MAX_FREQUENCY_HZ,
@@ -59,11 +57,15 @@ class Sinusoid(PeriodicWaveform):
         return 2.0 * math.pi * self.frequency_hz
 
     def __call__(self, t: Any) -> np.ndarray:
+        from gevsim import _portable as pm
+
         t = as_time(t)
         r = self._phase(t)  # phase reduction keeps sin() accurate at large t
         return np.maximum(1.0 + self.modulation * pm.sin(self._omega * r + self.phase_rad), 0.0)
 
     def _cum_one(self, r: np.ndarray) -> np.ndarray:
+        from gevsim import _portable as pm
+
         w, phi = self._omega, self.phase_rad
         return r - (self.modulation / w) * (pm.cos(w * r + phi) - pm.cos(phi))
 

@@ -24,8 +24,6 @@ from typing import Any
 
 import numpy as np
 
-from gevsim import _portable as pm
-
 from .base import MAX_FREQUENCY_HZ, FieldError, RandomRanges, Waveform, real
 from .basic import Sinusoid
 from .table import Table
@@ -44,6 +42,8 @@ SODIUM_PERSISTENCE_S = 0.7e-3
 
 def first_order_response(mains_hz: float, tau_s: float) -> tuple[float, float]:
     """Return ``(a, phi)`` of the low-passed ``sin^2`` drive at ``2 mains_hz``."""
+    from gevsim import _portable as pm
+
     x = 4.0 * math.pi * mains_hz * tau_s
     return 1.0 / math.sqrt(1.0 + x * x), float(pm.atan(x))
 
@@ -145,6 +145,8 @@ class Fluorescent(_FirstOrderLamp):
     @property
     def lag_rad(self) -> float:
         if self.modulation is not None:
+            from gevsim import _portable as pm
+
             a = self.modulation
             return 0.5 * math.pi if a == 0 else float(pm.atan(math.sqrt(max(1.0 / (a * a) - 1.0, 0.0))))
         tau = FLUORESCENT_PERSISTENCE_S if self.persistence_s is None else self.persistence_s
@@ -205,6 +207,8 @@ class SodiumHID(MainsLamp):
 
     @cached_property
     def _inner(self) -> Table:
+        from gevsim import _portable as pm
+
         p = self.period_s
         half = 0.5 * self.reignition_fraction * p
         # times from the current zero: dark band [-half, half], lit (half, p - half)
@@ -229,6 +233,8 @@ def _periodic_first_order(h: np.ndarray, p0: np.ndarray, p1: np.ndarray, tau: fl
     """
     if tau == 0.0:
         return np.concatenate([[p1[-1]], p1])
+    from gevsim import _portable as pm
+
     e = pm.exp(-h / tau)
     s_tau = (p1 - p0) / h * tau
     c = p1 - s_tau + (s_tau - p0) * e

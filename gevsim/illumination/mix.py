@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from gevsim._portable import weighted_sum
 from gevsim._validate import real_array
 
 from .base import Waveform
@@ -51,6 +50,8 @@ def mix(basis: Any, weights: Any) -> np.ndarray:
         raise ValueError(f"weights have {w.shape[-1]} light groups (shape {w.shape}) "
                          f"but basis has {b.shape[0]} (shape {b.shape})")
     real_array(w, "weights")
+    from gevsim._portable import weighted_sum  # numba: imported where the mixing starts
+
     out = weighted_sum(w.reshape(-1, w.shape[-1]), b.reshape(b.shape[0], -1), dtype=dtype)
     return out.reshape(w.shape[:-1] + b.shape[1:])
 
@@ -96,6 +97,8 @@ def mix_poses(basis: Any, basis_times_s: Any, t_s: Any, weights: Any) -> np.ndar
     i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
     a = np.clip((t - times[i]) / (times[i + 1] - times[i]), 0.0, 1.0)
     out = np.empty((len(t),) + shape, dtype)
+    from gevsim._portable import weighted_sum
+
     for seg in np.unique(i):
         rows = np.flatnonzero(i == seg)
         wr = w[rows]

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from scipy.interpolate import PchipInterpolator
 
 from gevsim._validate import increasing, real
+from gevsim.optics.qe_curves import QE_CURVES, SILICON_QE_BSI, SILICON_QE_FSI  # noqa: F401 (they lived here)
 
 #: A QE spec: None (the default silicon curve), a constant in (0, 1], a (wavelengths_nm, qe) pair
 #: or a colour SpectralDistribution.
@@ -26,27 +27,6 @@ QE = float | tuple[Sequence[float], Sequence[float]] | colour.SpectralDistributi
 
 __all__ = ["QE_CURVES", "SILICON_QE_BSI", "SILICON_QE_FSI", "silicon_qe", "silicon_qe_sd", "quantum_efficiency",
            "Pixel"]
-
-#: (wavelength_nm, QE) of a generic FSI CMOS pixel (assumed, typical values).
-SILICON_QE_FSI = (
-    (300.0, 350.0, 400.0, 450.0, 500.0, 550.0, 600.0, 650.0, 700.0,
-     750.0, 800.0, 850.0, 900.0, 950.0, 1000.0, 1050.0, 1100.0),
-    (0.0, 0.05, 0.22, 0.40, 0.52, 0.58, 0.57, 0.52, 0.44,
-     0.35, 0.26, 0.18, 0.11, 0.06, 0.025, 0.007, 0.0),
-)
-
-#: (wavelength_nm, QE) of a generic back-side illuminated (BSI) CMOS pixel (assumed, typical values,
-#: shaped after EMVA 1288 reports of BSI sensors): no gate stack in the light path, so higher in the
-#: blue and a maximum of ~0.80 at 500-550 nm, the same silicon cut-off in the infrared.
-SILICON_QE_BSI = (
-    (300.0, 350.0, 400.0, 450.0, 500.0, 550.0, 600.0, 650.0, 700.0,
-     750.0, 800.0, 850.0, 900.0, 950.0, 1000.0, 1050.0, 1100.0),
-    (0.0, 0.25, 0.55, 0.72, 0.80, 0.80, 0.75, 0.66, 0.55,
-     0.43, 0.32, 0.22, 0.14, 0.08, 0.035, 0.01, 0.0),
-)
-
-#: QE curves by the name a sensor preset gives (``[sensor] quantum_efficiency``).
-QE_CURVES = {"fsi": SILICON_QE_FSI, "bsi": SILICON_QE_BSI}
 
 
 def _as_table(table, *, name: str) -> tuple[tuple[float, ...], tuple[float, ...]]:

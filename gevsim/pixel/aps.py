@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.constants import e as ELEMENTARY_CHARGE_C
 
 from gevsim._validate import increasing, integer, real, real_array
 from gevsim.config import FieldError, FromTable
@@ -113,6 +112,8 @@ def exposure_electrons(photocurrent_a: ArrayLike, t_edges_s: ArrayLike, frame_st
         k = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, current.shape[0] - 1)
         dt = (t - edges[k]).reshape((-1,) + (1,) * (current.ndim - 1))
         return charge[k] + current[k] * dt
+
+    from scipy.constants import e as ELEMENTARY_CHARGE_C  # here: reading a preset needs no scipy
 
     return (charge_at(ends) - charge_at(starts)) / ELEMENTARY_CHARGE_C
 

@@ -10,8 +10,6 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from scipy.constants import Boltzmann, elementary_charge
-
 from gevsim._validate import real
 from gevsim.config import FieldError, FromTable
 from gevsim.pixel.mechanisms import NOISE_MECHANISMS
@@ -85,6 +83,8 @@ class PhotoreceptorParams(FromTable):
 
     @property
     def thermal_voltage_v(self) -> float:
+        from scipy.constants import Boltzmann, elementary_charge  # here: reading a preset needs no scipy
+
         return Boltzmann * self.temperature_k / elementary_charge
 
     @property

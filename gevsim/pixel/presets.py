@@ -295,6 +295,18 @@ def preset_digest(name_or_path: str | Path) -> str:
 
 def load_preset(name_or_path: str | Path) -> SensorPreset:
     """Load a preset by name (``dvs128``, ``davis346``, ``imx636``, ``ideal``) or TOML path."""
+    return _load_preset(name_or_path, photometry=True)
+
+
+def listed_preset(name_or_path: str | Path) -> SensorPreset:
+    """A preset as ``gevsim presets`` lists it: read and checked as :func:`load_preset` does but for the two
+    steps that import colour-science and numba (a second or more, issue 37): ``cutoff_ref_lux`` is not
+    converted to a photocurrent (``photoreceptor.cutoff_ref_photocurrent_a`` keeps its default) and the dark
+    current is not checked at the sensor's temperature. For listings, not for emulation."""
+    return _load_preset(name_or_path, photometry=False)
+
+
+def _load_preset(name_or_path: str | Path, *, photometry: bool) -> SensorPreset:
     path = preset_path(name_or_path)
     src = str(path)
     raw, r = load_table(path, what="sensor preset file", tables=TABLES)
@@ -325,13 +337,15 @@ def load_preset(name_or_path: str | Path) -> SensorPreset:
                               key="photoreceptor.cutoff_ref_lux")
         r.number(raw["photoreceptor"], "cutoff_ref_lux", "photoreceptor", positive=True,
                  maximum=MAX_CUTOFF_REF_LUX)
-        receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
-            lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
-            spectrum=spectrum, source=src, qe=QE_CURVES[qe_name])
+        if photometry:
+            receptor["cutoff_ref_photocurrent_a"] = lux_to_photocurrent_a(
+                lux, pixel_pitch_m=sensor["pixel_pitch_m"], fill_factor=sensor["fill_factor"],
+                spectrum=spectrum, source=src, qe=QE_CURVES[qe_name])
     aps = raw.get("aps")
     photoreceptor = PhotoreceptorParams.from_table(receptor, source=src)
     noise = NoiseParams.from_table(raw["noise"], source=src)
-    check_dark_current(photoreceptor, noise, source=src, key="noise.dark_current_a")
+    if photometry:
+        check_dark_current(photoreceptor, noise, source=src, key="noise.dark_current_a")
     return SensorPreset(
         name=str(sensor.get("name", path.stem)),
         description=str(sensor.get("description", "")),

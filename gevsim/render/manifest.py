@@ -22,6 +22,7 @@ from gevsim.errors import ConfigError, check_keys, clipped, suggest
 from gevsim.illumination import Waveform
 from gevsim.illumination import from_spec as waveform_from_spec
 from gevsim.io.ownership import check_name
+from gevsim.optics.lamps import LAMP_NAMES  # the names only: colour-science where one is not there
 from gevsim.render.manifest_checks import brightest, check_up
 from gevsim.render.quality import RENDER_KEYS, RenderSettings, check_render_size, quality_settings, render_settings
 from gevsim.render.quality import check_render_overrides as check_render_overrides  # re-exported (it lived here)
@@ -340,7 +341,7 @@ def _light_group(name: str, spec: dict, r: TomlReader) -> LightGroup:
         r.fail(f"{where}.spectrum", f"expected a lamp spectrum name, got {spectrum!r}")
     if modes[0] != "radiance_w_m2_sr" and spectrum is None:
         r.fail(f"{where}.spectrum", f"{modes[0]} needs a lamp spectrum (e.g. 'FL2', 'HP1', 'LED-B3', 'D65')")
-    if spectrum is not None:
+    if spectrum is not None and spectrum not in LAMP_NAMES:  # another spelling colour-science takes, or none
         from gevsim.optics import lamp_spectrum
 
         try:

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from gevsim import _portable as pm
 from gevsim._validate import FieldError, real
 from gevsim.pixel.mechanisms._base import MAX_NOISE_V, KernelNoise
 
@@ -39,6 +38,8 @@ def flicker_noise_poles(noise: Any, volts_per_ln: float) -> tuple[np.ndarray, np
     McWhorter's construction); total variance = (flicker_noise_v / n U_T)^2."""
     if noise.flicker_noise_v == 0:
         return np.zeros(0), np.zeros(0)
+    from gevsim import _portable as pm
+
     lo, hi = noise.flicker_noise_low_hz, noise.flicker_noise_high_hz
     decades = float(pm.log10(hi / lo))
     m = max(2, min(8, math.ceil(decades) + 1))

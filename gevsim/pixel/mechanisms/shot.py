@@ -9,8 +9,6 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from scipy.constants import elementary_charge
-
 from gevsim._validate import FieldError
 from gevsim.pixel.mechanisms._base import KernelNoise
 
@@ -40,5 +38,7 @@ def shot_noise_factor(noise: Any) -> float:
 
 def temporal(noise: Any, volts_per_ln: float, plan: KernelNoise) -> None:
     """pi q per source on the photoreceptor pole (the feedback transistor's only with the photodiode's)."""
+    from scipy.constants import elementary_charge  # here: reading a preset needs no scipy
+
     if noise.shot_noise:
         plan.shot_q += math.pi * elementary_charge * shot_noise_factor(noise)
