@@ -19,6 +19,14 @@ CLI imports it before it knows what it will run.
 from __future__ import annotations
 
 import importlib
+import os
+
+#: How numba's OpenMP threads wait at the end of a parallel loop (README, "Threads"): GNU OpenMP, numba's "omp"
+#: threading layer here, spins ~300,000 times (milliseconds) by default, and beside other work its spinning
+#: threads took the cores the others needed: 2 threads ran 5.3x slower than 1 on a loaded machine (issue 37).
+#: PASSIVE sleeps at once. libgomp reads it when it loads (numba's first parallel call), so it is set at
+#: ``import gevsim``, never over a value the user set; child processes inherit it.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy reads the name)
 

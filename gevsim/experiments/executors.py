@@ -8,6 +8,12 @@ imported Mitsuba/Dr.Jit (whose LLVM backend keeps a thread pool) and numba,
 and forking a process with live threads can deadlock the child. A spawned
 worker pays ~1-2 s of imports once, then runs any number of jobs. Workers exit
 when the process that started them dies, even by kill -9 (:func:`_exit_with_parent`).
+
+Threads (README, "Threads"): ``W`` workers on a machine of ``C`` usable cores
+(:func:`usable_cores`) each get ``max(1, C // W)`` numba threads (:func:`worker_threads`), so a
+pool keeps about one busy thread per core: a process-pool worker through its environment, a Dask
+``LocalCluster`` task by ``numba.set_num_threads`` in its own thread (numba counts threads per
+calling thread). Workers of a Dask scheduler given by address keep their cluster's settings.
 """
 
 from __future__ import annotations
@@ -28,9 +34,53 @@ from gevsim.errors import ConfigError, MissingExtraError, one_line, suggest
 log = logging.getLogger(__name__)
 
 
-#: Thread-pool variables a worker process gets unless the parent's environment sets them: one job per
-#: core, so each worker's BLAS/OpenMP/numba pools hold one thread (several would oversubscribe the cores).
+#: Thread-pool variables a worker process gets unless the parent's environment sets them: each worker's
+#: BLAS/OpenMP/numba pools hold :func:`worker_threads` threads (more would oversubscribe the cores).
 WORKER_THREADS_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+#: cgroup files that cap a container's CPU time (v2 ``cpu.max``: "QUOTA PERIOD" or "max PERIOD"; v1: two files).
+CGROUP_CPU_MAX = "/sys/fs/cgroup/cpu.max"
+CGROUP_V1_QUOTA = ("/sys/fs/cgroup/cpu/cpu.cfs_quota_us", "/sys/fs/cgroup/cpu/cpu.cfs_period_us")
+
+
+def usable_cores() -> int:
+    """The cores this process may use: its CPU affinity (``taskset``, a batch system's cpuset), capped by a
+    cgroup CPU quota (``docker --cpus``, a Kubernetes limit) rounded down; at least 1."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    quota = _cgroup_cpus()
+    return max(1, cores if quota is None else min(cores, quota))
+
+
+def _cgroup_cpus() -> int | None:
+    """Whole CPUs of this container's cgroup quota, or None (no quota, or no cgroup file to read)."""
+    try:
+        with open(CGROUP_CPU_MAX) as f:
+            quota, period = f.read().split()[:2]
+    except (OSError, ValueError):
+        try:
+            quota, period = (open(name).read().strip() for name in CGROUP_V1_QUOTA)
+        except OSError:
+            return None
+    try:
+        q, p = int(quota), int(period)
+    except ValueError:  # "max": no quota
+        return None
+    return q // p if q > 0 and p > 0 else None
+
+
+def worker_threads(workers: int) -> int:
+    """numba threads for each of ``workers`` workers sharing this machine: ``usable_cores() // workers``, at
+    least 1 (issue 37: with a pool of one worker per core and numba threads = cores, every study oversubscribed
+    the machine)."""
+    return max(1, usable_cores() // workers)
+
+
+def _threads_env(threads: int) -> dict[str, str]:
+    """:data:`WORKER_THREADS_ENV` at ``threads``, but for the names this process's environment sets."""
+    return {name: str(threads) for name in WORKER_THREADS_ENV if name not in os.environ}
 
 
 #: How often (seconds) a pool worker checks that the process that started it is alive.
@@ -46,11 +96,12 @@ def _exit_with_parent(parent_pid: int) -> None:
         time.sleep(PARENT_POLL_S)
 
 
-def _single_threaded(parent_pid: int | None = None) -> None:
-    """Process-pool initializer: runs in the spawned worker before it imports numpy or numba. With
-    ``parent_pid``, a daemon thread ends the worker when that parent dies (:func:`_exit_with_parent`)."""
-    for name in WORKER_THREADS_ENV:
-        os.environ.setdefault(name, "1")
+def _worker_init(parent_pid: int | None = None, env: dict[str, str] | None = None) -> None:
+    """Process-pool initializer: runs in the spawned worker before it imports numpy or numba, and sets
+    ``env`` (:func:`_threads_env`) where the environment does not. With ``parent_pid``, a daemon thread
+    ends the worker when that parent dies (:func:`_exit_with_parent`)."""
+    for name, value in (env or {}).items():
+        os.environ.setdefault(name, value)
     if parent_pid is not None:
         threading.Thread(target=_exit_with_parent, args=(parent_pid,), name="gevsim-parent-watch",
                          daemon=True).start()
@@ -58,11 +109,14 @@ def _single_threaded(parent_pid: int | None = None) -> None:
 
 @contextlib.contextmanager
 def _local(workers: int | None, scheduler: str | None, processes: bool) -> Iterator[Executor]:
-    """A spawn-context ``ProcessPoolExecutor`` of ``workers`` single-threaded processes (default: the CPUs)."""
+    """A spawn-context ``ProcessPoolExecutor`` of ``workers`` processes (default: the usable cores), each with
+    :func:`worker_threads` numba threads."""
     if scheduler is not None:
         raise ConfigError("a scheduler address needs the dask executor", key="scheduler")
+    workers = workers or usable_cores()
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=_single_threaded, initargs=(os.getpid(),)) as pool:
+                             initializer=_worker_init,
+                             initargs=(os.getpid(), _threads_env(worker_threads(workers)))) as pool:
         yield pool
 
 
@@ -104,6 +158,7 @@ def _dead_worker(exc: BaseException) -> str | None:
 def _dask_client(workers: int | None, scheduler: str | None, processes: bool, Client: Any,
                  LocalCluster: Any) -> Iterator[Executor]:
     """The executor of a client of ``scheduler`` or of a new LocalCluster (see :func:`_dask`)."""
+    threads = None  # numba threads per LocalCluster task (a scheduler's workers keep their cluster's settings)
     with contextlib.ExitStack() as stack:
         if scheduler is not None:
             if workers is not None:
@@ -114,14 +169,47 @@ def _dask_client(workers: int | None, scheduler: str | None, processes: bool, Cl
                 raise ConfigError(f"cannot connect to the Dask scheduler at {scheduler!r}: {one_line(exc)}",
                                   key="--scheduler") from None
         else:
+            workers = workers or usable_cores()
             cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
                                                        dashboard_address=None))
             client = stack.enter_context(Client(cluster))
+            if "NUMBA_NUM_THREADS" not in os.environ:  # else the user's count, as the local pool keeps it
+                threads = worker_threads(workers)
         executor = client.get_executor()
+        if threads is not None:
+            executor = _NumbaThreads(executor, threads)
         try:
             yield executor
         finally:
             executor.shutdown(wait=True)
+
+
+class _NumbaThreads(Executor):
+    """An executor whose tasks first set numba's threads, in the thread that runs them (:class:`_WithThreads`)."""
+
+    def __init__(self, inner: Executor, threads: int):
+        self._inner, self._threads = inner, threads
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any:
+        return self._inner.submit(_WithThreads(fn, self._threads), *args, **kwargs)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self._inner.shutdown(wait=wait)  # Dask's executor takes no cancel_futures
+
+
+class _WithThreads:
+    """``fn`` called after ``numba.set_num_threads(threads)`` (at most numba's pool); picklable, and named as
+    ``fn`` (Dask names a task, and a dead worker's message, after it)."""
+
+    def __init__(self, fn: Callable[..., Any], threads: int):
+        self.fn, self.threads = fn, threads
+        self.__name__ = getattr(fn, "__name__", type(fn).__name__)
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        import numba
+
+        numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
+        return self.fn(*args, **kwargs)
 
 
 #: Executor kinds: name -> ``factory(workers, scheduler, processes)``, a context manager yielding an
@@ -145,8 +233,9 @@ def make_executor(kind: str = "local", *, workers: int | None = None, scheduler:
         ``dask.distributed`` client's executor, connected to ``scheduler`` if
         given, else to a new ``LocalCluster``.
     workers : int, optional
-        Worker processes (local pool, or the LocalCluster's workers, one thread
-        each). Default: the number of CPUs. Ignored with ``scheduler``.
+        Worker processes (local pool, or the LocalCluster's workers, one task
+        at a time each). Default: the usable cores (:func:`usable_cores`). Each
+        gets :func:`worker_threads` numba threads. Ignored with ``scheduler``.
     scheduler : str, optional
         Address of a running Dask scheduler, e.g. ``tcp://10.0.0.1:8786``.
     processes : bool

@@ -111,9 +111,9 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
     """Emulate repeat ``repeat`` of a run and its counterfactuals, score reconstructions, write the
     repeat's arrays and marker; return its record (picklable: what executors run).
 
-    ``threads`` sets numba's threads for this job (a worker of a process pool runs one job per
-    core, so 1 there); None leaves numba's default. ``rid`` is the run's :func:`run_id` when the
-    caller has it (computing it hashes every file of the scene)."""
+    ``threads`` sets numba's threads for this job; 0 keeps the count the executor gave its worker
+    (:func:`gevsim.experiments.executors.worker_threads`), None numba's default. ``rid`` is the run's
+    :func:`run_id` when the caller has it (computing it hashes every file of the scene)."""
     from gevsim.emulation import prepare, run
     from gevsim.emulation.driver import render_noise_floor
     from gevsim.emulation.summary import summarize
@@ -182,13 +182,14 @@ def execute_repeat(study: Study, params: dict, repeat: int, out: str | os.PathLi
 
 
 def _in_worker(threads: int) -> None:
-    """An executor's worker: numba's threads set, the render's quality warnings held back (the parent rendered
-    or loaded every basis before fanning out and logged them once)."""
+    """An executor's worker: numba's threads set (0: as the executor set them), the render's quality warnings
+    held back (the parent rendered or loaded every basis before fanning out and logged them once)."""
     import logging
 
-    import numba
+    if threads:
+        import numba
 
-    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     logging.getLogger("gevsim.render").setLevel(logging.ERROR)
 
 
