@@ -355,3 +355,43 @@ def test_a_wrong_part_is_one_line_and_exit_2(tmp_path, capsys, part, text):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"gevsim: error: {text}")
     assert not out.exists() and not parts_root(out).exists()
+
+
+def recipe(title: str) -> str:
+    """The first Python block of docs/cluster.md after the heading ``title``."""
+    text = (Path(__file__).parents[2] / "docs" / "cluster.md").read_text()
+    section = text[text.index(f"## {title}\n"):]
+    return section[section.index("```python\n") + 10:section.index("\n```\n")]
+
+
+def test_the_local_cluster_recipe_of_the_docs(reference, tmp_path):
+    """docs/cluster.md's LocalCluster recipe, run as written (its function; one worker in a thread, to start
+    quickly): a Dask scheduler given by address makes the single run's shards, bit for bit."""
+    pytest.importorskip("dask.distributed", reason="the dask extra is not installed")
+    config, ref, cache, _ = reference
+    namespace: dict = {"__name__": "recipe"}
+    exec(compile(recipe("Try it on one machine: LocalCluster"), "docs/cluster.md", "exec"), namespace)
+    out = tmp_path / "out"
+    assert namespace["make_dataset"](config.source, str(out), "--cache", str(cache), "-q", workers=1,
+                                     processes=False) == 0
+    assert files_sha256(out) == files_sha256(ref)
+    assert json.loads((out / "dataset.json").read_text())["complete"]
+
+
+def test_cli_parts_say_who_merges(reference, tmp_path, capsys):
+    """`gevsim dataset --part` as an array task runs it (here on a Dask scheduler in this process, quick to start):
+    each part says what it made and whether the output is merged."""
+    distributed = pytest.importorskip("dask.distributed", reason="the dask extra is not installed")
+    config, ref, cache, _ = reference
+    out = tmp_path / "out"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
+        run = ["dataset", config.source, "--out", str(out), "--executor", "dask", "--scheduler", cl.scheduler_address,
+               "--cache", str(cache), "-q"]
+        assert main([*run, "--part", "1/2"]) == 0
+        err = capsys.readouterr().err.splitlines()
+        assert err[-2].startswith(f"gevsim: part 1/2: 1 sequences: 1 made, 0 already done; wrote {out}.parts/1-of-2")
+        assert err[-1] == "gevsim: 2 sequences not finished yet: the part that finishes last merges every part into " \
+            f"{out}"
+        assert main([*run, "--part", "0/2"]) == 0
+        assert capsys.readouterr().err.splitlines()[-1] == f"gevsim: every part has finished: merged into {out}"
+    assert files_sha256(out) == files_sha256(ref) and not parts_root(out).exists()
