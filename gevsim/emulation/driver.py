@@ -254,7 +254,7 @@ def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub:
     span = 0.0 if config.cold_start else burn_in_span_s(config.burn_in_s, period)
     pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise, t0_s=-span,
                        rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]), cold_start=config.cold_start)
-    start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s)
+    start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s, chunk_steps=chunk_steps)
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}

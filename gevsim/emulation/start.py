@@ -47,8 +47,9 @@ def common_period_s(waveforms: tuple | list) -> float | None:
     return None
 
 
-def settle(pr: Photoreceptor, setup: Setup, step_s: float) -> str:
-    """Start ``pr`` at the periodic steady state of the scene's lamps (a sensor that has been running);
+def settle(pr: Photoreceptor, setup: Setup, step_s: float, *, chunk_steps: int | None = None) -> str:
+    """Start ``pr`` at the periodic steady state of the scene's lamps (a sensor that has been running), the
+    period's photocurrent made ``chunk_steps`` steps at a time (None: all at once; the result is the same);
     returns what was done, for the file's ``start`` attribute."""
     period = common_period_s(setup.waveforms)
     if period is None:
@@ -57,7 +58,9 @@ def settle(pr: Photoreceptor, setup: Setup, step_s: float) -> str:
         period = step_s  # constant light: one step of it is its period
     n = max(1, int(np.ceil(period / step_s - 1e-9)))
     t_end = step_grid(setup.waveforms, 0.0, period / n * np.arange(1, n + 1))
-    pr.settle(held_photocurrent(setup, 0.0, t_end), np.diff(t_end, prepend=0.0))
+    starts = np.r_[0.0, t_end[:-1]]
+    pr.settle(lambda a, b: held_photocurrent(setup, float(starts[a]), t_end[a:b]), np.diff(t_end, prepend=0.0),
+              chunk_steps=chunk_steps)
     return f"periodic steady state of the lamps ({period * 1e3:.6g} ms, {len(t_end)} steps)"
 
 

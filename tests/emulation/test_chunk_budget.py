@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_pinned_outputs import PINS, h5_digest, synthetic_setup
 
 from gevsim.emulation import run
+from gevsim.pixel import Photoreceptor, load_preset
 from gevsim.resources import (
     CHUNK_MEMORY_CAP_BYTES,
     CHUNK_MEMORY_FRACTION,
@@ -80,3 +82,16 @@ def test_budget_chunks_fill_the_budget_within_their_bounds(installed, width, hei
     assert 1 <= steps <= MAX_CHUNK_STEPS
     assert steps == 1 or steps * per_step <= budget  # fits, unless even one step does not
     assert steps == MAX_CHUNK_STEPS or (steps + 1) * per_step > budget  # and takes all that fits
+
+
+def test_settling_in_chunks_gives_the_same_start_bit_for_bit():
+    preset = load_preset("davis346")
+    rng = np.random.default_rng(3)
+    current = 1e-12 * (0.2 + rng.random((23, 5, 4))) * (1 + np.arange(23) % 3)[:, None, None]  # a flickering light
+    dt = rng.uniform(5e-6, 4e-5, 23)
+    states = []
+    for source, chunk in ((current, None), (lambda a, b: current[a:b], 5), (lambda a, b: current[a:b], 1)):
+        pr = Photoreceptor((5, 4), params=preset.photoreceptor, noise=preset.noise, rng=np.random.default_rng(1))
+        pr.settle(source, dt, chunk_steps=chunk)
+        states.append(np.concatenate([pr.v1, pr.v2, pr.settled_ln]))
+    assert np.array_equal(states[0], states[1]) and np.array_equal(states[0], states[2])
