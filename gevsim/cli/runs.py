@@ -119,7 +119,8 @@ MERGE_LINES = {
     "waiting": "{left} not finished yet: the part that finishes last merges every part into {out}",
     "complete": "every part has finished: merged into {out}",
     "merged": "another part merged this one into {out}",
-    "busy": "{out} is busy (another gevsim run writes into it): when it ends, `{again} --merge` merges this part",
+    "busy": "another gevsim run holds {out}: the merge of another part takes this one too; any other run leaves "
+            "it to `{again} --merge` after it",
     "incomplete": "merged into {out}, but {left} not there yet (a part folder was busy): `{again} --merge` merges "
                   "it when that part has ended",
 }

@@ -232,7 +232,8 @@ def _drop(folder: Path, scratch: tuple[str, ...]) -> None:
     for top in os.scandir(folder):
         if top.is_dir(follow_symlinks=False):
             for dirpath, _, _ in sorted(os.walk(top.path), key=lambda w: -len(w[0])):
-                os.rmdir(dirpath)
+                with contextlib.suppress(OSError):  # not empty after all: kept, and the part folder with it
+                    os.rmdir(dirpath)
 
 
 def _drop_shell(folder: Path) -> None:
