@@ -338,8 +338,9 @@ def test_merge_takes_what_parts_finished_and_the_next_runs_make_only_the_rest(re
     assert files_sha256(out) == {k: v for k, v in files_sha256(ref).items() if "00001" in k}
     redo = generate_part(config, out, Part(1, 3), cache_dir=cache)  # OUT holds sequence 1: not made again
     assert (redo["done"], redo["skipped"], redo["merge"], redo["unfinished"]) == (0, 1, "waiting", 2)
+    assert generate_part(config, out, Part(2, 3), cache_dir=cache)["unfinished"] == 1  # sequence 2, in its part
     rest = generate(config, out, cache_dir=cache)  # a run without --part merges the parts, then makes the rest
-    assert (rest["done"], rest["skipped"]) == (2, 1) and not parts_root(out).exists()
+    assert (rest["merged"], rest["done"], rest["skipped"]) == (1, 1, 2) and not parts_root(out).exists()
     assert files_sha256(out) == files_sha256(ref)
 
 
