@@ -9,10 +9,17 @@ from gevsim.cli._common import _progress
 
 
 def cmd_info(args: argparse.Namespace) -> int:
+    import os
+
     from gevsim._lock import status
+    from gevsim.experiments.executors import usable_cores
     from gevsim.render.backend import describe
 
-    for key, value in {**describe(), "lock": status()}.items():
+    numba = (f"{os.environ['NUMBA_NUM_THREADS']} threads (NUMBA_NUM_THREADS)" if "NUMBA_NUM_THREADS" in os.environ
+             else "a thread per CPU (NUMBA_NUM_THREADS unset)")
+    threads = {"cores": f"{usable_cores()} usable; a pool of W workers gives each cores // W numba threads",
+               "numba": f"{numba}; OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', '(unset)')}"}
+    for key, value in {**describe(), **threads, "lock": status()}.items():
         print(f"{key:>9}: {value}")
     return 0
 
