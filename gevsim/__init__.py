@@ -21,7 +21,7 @@ from __future__ import annotations
 import importlib
 import os
 
-#: How numba's OpenMP threads wait at the end of a parallel loop (README, "Threads"): GNU OpenMP, numba's "omp"
+#: How numba's OpenMP threads wait at the end of a parallel loop (docs/api.md, "Threads"): GNU OpenMP, numba's "omp"
 #: threading layer here, spins ~300,000 times (milliseconds) by default, and beside other work its spinning
 #: threads took the cores the others needed: 2 threads ran 5.3x slower than 1 on a loaded machine (issue 37).
 #: PASSIVE sleeps at once. libgomp reads it when it loads (numba's first parallel call), so it is set at

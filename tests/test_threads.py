@@ -1,5 +1,5 @@
 """Threads (issue 37, item 3): gevsim makes numba's OpenMP threads sleep rather than spin, never over the
-user's setting, and a pool of W workers gives each floor(cores / W) numba threads (README, "Threads")."""
+user's setting, and a pool of W workers gives each floor(cores / W) numba threads (docs/api.md, "Threads")."""
 
 import ctypes.util
 import os
@@ -58,6 +58,14 @@ def test_usable_cores_is_the_affinity_capped_by_a_cgroup_quota(monkeypatch, tmp_
     assert usable_cores() == 1
     quota.write_text("6400000 100000\n")  # 64 CPUs' quota on this machine: its own cores
     assert usable_cores() == affinity
+    quota.unlink()  # cgroup v1: quota and period in two files, -1 for none
+    v1 = (tmp_path / "cfs_quota_us", tmp_path / "cfs_period_us")
+    monkeypatch.setattr(executors, "CGROUP_V1_QUOTA", tuple(map(str, v1)))
+    v1[1].write_text("100000\n")
+    v1[0].write_text("-1\n")
+    assert usable_cores() == affinity
+    v1[0].write_text("100000\n")
+    assert usable_cores() == 1
 
 
 def test_pool_workers_get_cores_over_workers_numba_threads(monkeypatch):

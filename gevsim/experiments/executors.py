@@ -9,7 +9,7 @@ and forking a process with live threads can deadlock the child. A spawned
 worker pays ~1-2 s of imports once, then runs any number of jobs. Workers exit
 when the process that started them dies, even by kill -9 (:func:`_exit_with_parent`).
 
-Threads (README, "Threads"): ``W`` workers on a machine of ``C`` usable cores
+Threads (docs/api.md, "Threads"): ``W`` workers on a machine of ``C`` usable cores
 (:func:`usable_cores`) each get ``max(1, C // W)`` numba threads (:func:`worker_threads`), so a
 pool keeps about one busy thread per core: a process-pool worker through its environment, a Dask
 ``LocalCluster`` task by ``numba.set_num_threads`` in its own thread (numba counts threads per
@@ -56,13 +56,16 @@ def usable_cores() -> int:
 
 def _cgroup_cpus() -> int | None:
     """Whole CPUs of this container's cgroup quota, or None (no quota, or no cgroup file to read)."""
+    def words(path: str) -> list[str]:
+        with open(path) as f:
+            return f.read().split()
+
     try:
-        with open(CGROUP_CPU_MAX) as f:
-            quota, period = f.read().split()[:2]
+        quota, period = words(CGROUP_CPU_MAX)[:2]
     except (OSError, ValueError):
         try:
-            quota, period = (open(name).read().strip() for name in CGROUP_V1_QUOTA)
-        except OSError:
+            quota, period = (words(name)[0] for name in CGROUP_V1_QUOTA)
+        except (OSError, IndexError):
             return None
     try:
         q, p = int(quota), int(period)
