@@ -27,7 +27,7 @@ from gevsim.pixel._kernels import GOLDEN, normals_row, stream_key
 #: The counter-based stream of the long-step advances: pixel p's three deviates of its a-th advance are
 #: normal(pixel_bits(stream_key(key, p, STREAM_LONG), 3 a + m)), m = 0, 1, 2 (drawn NZ at a time).
 STREAM_LONG = 37
-NZ = 192
+NZ = 48
 #: Columns of a pixel's cached coefficients per candidate: a, coupling, s1 (the photoreceptor pole's noise),
 #: A1 (its share in the output), q (the rest of the output's noise, shot and read), var_y (the output noise's
 #: variance), rho (the cascade's correlation over the candidate: how far the mean may fall back toward u).
@@ -124,12 +124,12 @@ def _refill(skey, z, sp, idx):
 
 
 @njit(cache=True)
-def _runs(light, run, most):
-    """run[f] = how many frames from f (at most ``most``) hold the light ``light[f]`` (one pixel's) unchanged."""
-    F = light.shape[0]
+def _runs(current, p, run, most):
+    """run[f] = how many frames from f (at most ``most``) hold pixel p's light ``current[f, p]`` unchanged."""
+    F = current.shape[0]
     run[F - 1] = 1
     for f in range(F - 2, -1, -1):
-        run[f] = min(run[f + 1] + 1, most) if light[f + 1] == light[f] else 1
+        run[f] = min(run[f + 1] + 1, most) if current[f + 1, p] == current[f, p] else 1
 
 
 @njit(cache=True)
@@ -139,21 +139,21 @@ def _at(fs, fe, j, n_sub):
 
 
 @njit(error_model="numpy", cache=True)
-def _pixel(p, light_p, frame, pix, tables, dvs, state, key, bufs, n, cap, scratch, stats):
+def _pixel(p, current, frame, pix, tables, dvs, state, key, bufs, n, cap, scratch, stats):
     """(Over 80 lines: one pixel's whole loop over its advances, its state in registers and no array passed
     to a call inside it: each such call cost ~130 ns in reference counts.) Pixel p through every frame of
-    the chunk (``light_p`` (F,): its total photocurrent per frame); returns the buffer fill, or -1 when the
-    buffer is full. ``frame`` = (fs, fe, n_sub, frame0); ``pix`` = (offset, on, off, refractory); ``tables``
+    the chunk (``current`` (F, P): photocurrent per frame); returns the buffer fill, or -1 when the buffer is
+    full. ``frame`` = (fs, fe, n_sub, frame0); ``pix`` = (gain, dark, offset, on, off, refractory); ``tables``
     = (cand, z, glob, n_pow, K, g_r, prs); ``dvs`` = (leak (ln/s), leak per exp(signal) (< 0: none), reset
     sigma, reset key, x, y); ``state`` = (v1, v2, rd, ref, v_prev, last_t, count, advances); ``bufs`` = (t, x,
     y, p); ``scratch`` = (cache, ok, runs, z, sp, idx).
 
-    Each advance: choose (held in reset: the whole held steps; else the first candidate, largest first,
-    that keeps the bound: 2^k whole frames on their grid where the light is unchanged, then powers of two
-    within the frame; else a base step), the exact transition, then the reference's DVS rule over the
-    advance as one step."""
+    Each advance: choose (held in reset: the whole held steps; else the largest candidate that keeps the
+    bound, by bisection: 2^k whole frames on their grid where the light is unchanged, the sizes within the
+    frame, or a base step), the exact transition, then the reference's DVS rule over the advance as one
+    step."""
     fs, fe, n_sub, frame0 = frame
-    offset, on, off, refractory = pix
+    gain, dark, offset, on, off, refractory = pix
     cand, z, glob, n_pow, K, g_r, prs = tables
     leak, leak_light, reset_sigma, reset_key, px, py = dvs
     v1, v2, rd, ref_a, vp_a, lt_a, count_a, adv_a = state
@@ -165,15 +165,15 @@ def _pixel(p, light_p, frame, pix, tables, dvs, state, key, bufs, n, cap, scratc
     filt, beta, h0 = prs[FILT], prs[BETA], prs[H0]
     x, y, r = v1[p], v2[p], rd[p]
     ref, vp, lt, cnt = ref_a[p], vp_a[p], lt_a[p], count_a[p]
-    _runs(light_p, runs, 1 << K)
+    _runs(current, p, runs, 1 << K)
     base = 0 if n_pow > 0 else n_pow
     cur = np.nan
     u, alpha, var = 0.0, 0.0, 0.0
     f, j = 0, 0
-    while f < light_p.shape[0]:
-        if light_p[f] != cur:
-            cur = light_p[f]
-            u, alpha, var = _light(cur, prs[FC_PER_A], prs[FC_MAX], filt, beta, prs[SHOT_Q], prs[AMP])
+    while f < current.shape[0]:
+        if current[f, p] != cur:  # the total photocurrent as the reference computes it
+            cur = current[f, p]
+            u, alpha, var = _light(cur * gain + dark, prs[FC_PER_A], prs[FC_MAX], filt, beta, prs[SHOT_Q], prs[AMP])
             for c in range(ok.shape[0]):
                 ok[c] = False
         rate = leak + (leak_light * np.float64(expf(np.float32(vp))) if leak_light >= 0.0 else 0.0)
@@ -184,19 +184,20 @@ def _pixel(p, light_p, frame, pix, tables, dvs, state, key, bufs, n, cap, scratc
                 if j + cand[c] <= n_sub and lt + refractory - ta >= _at(fs[f], fe[f], j + cand[c], n_sub) - ta:
                     pick, kind = c, 2
                     break
-        else:
-            nk = K + 1 if j == 0 else 0
-            for q in range(nk + n_pow - 1):
-                if q < nk:
-                    m = 1 << (K - q)
-                    if (frame0 + f) & (m - 1) != 0 or runs[f] < m:
-                        continue
-                    c = n_pow + K - q
-                else:
-                    m = 0
-                    c = n_pow - 1 - (q - nk)
-                    if j + cand[c] > n_sub:
-                        continue
+        else:  # the largest candidate that keeps the bound: it holds for every shorter one, so bisect
+            top = 0
+            if j == 0:
+                k = K
+                while k > 0 and ((frame0 + f) & ((1 << k) - 1) != 0 or runs[f] < (1 << k)):
+                    k -= 1
+                top = n_pow + k
+            else:
+                top = n_pow - 1
+                while top > 0 and j + cand[top] > n_sub:
+                    top -= 1
+            lo, hi = 0, top
+            while lo < hi:
+                c = (lo + hi + 1) // 2
                 if not ok[c]:
                     co = _coefficients(cand[c] * h0, alpha, var, filt, beta, glob[c, 0], glob[c, 1], glob[c, 6],
                                        glob[c, 7])
@@ -205,8 +206,12 @@ def _pixel(p, light_p, frame, pix, tables, dvs, state, key, bufs, n, cap, scratc
                     ok[c] = True
                 co = (cache[c, 0], cache[c, 1], cache[c, 2], cache[c, 3], cache[c, 4], cache[c, 5], cache[c, 6])
                 if _fits(co, z[c], u, x, y, r, offset - ref, on, off, 2.0 * rate * cand[c] * h0, g_r):
-                    pick, m_pick, kind = c, m, (1 if c != base else 0)
-                    break
+                    lo = c
+                else:
+                    hi = c - 1
+            pick = lo
+            m_pick = 1 << (lo - n_pow) if lo >= n_pow else 0
+            kind = 1 if lo != base else 0
         c = pick
         if not ok[c]:
             co = _coefficients(cand[c] * h0, alpha, var, filt, beta, glob[c, 0], glob[c, 1], glob[c, 6], glob[c, 7])
@@ -277,20 +282,22 @@ def _pixel(p, light_p, frame, pix, tables, dvs, state, key, bufs, n, cap, scratc
 
 
 @njit(nogil=True, cache=True)
-def run_pixels(lo, hi, light, frame, pixel_arrays, tables, dvs_arrays, dvs_scalars, state, key, bufs, n, cap, stats):
-    """Pixels lo .. hi - 1 (``light`` (P, F): total photocurrent per frame), their events into ``bufs`` from n
-    below cap; returns the fill (-1: full). ``pixel_arrays`` = (offset (float32), on, off);
+def run_pixels(lo, hi, current, frame, pixel_arrays, tables, dvs_arrays, dvs_scalars, state, key, bufs, n, cap,
+               stats):
+    """Pixels lo .. hi - 1 (``current`` (F, P): photocurrent per frame; a pixel reads its column, the cache
+    lines of which serve the next pixels too), their events into ``bufs`` from n below cap; returns the fill
+    (-1: full). ``pixel_arrays`` = (gain, dark, offset (float32), on, off);
     ``dvs_arrays`` = (leak, leak per exp(signal) (empty: none), x, y); ``dvs_scalars`` = (refractory, reset
     sigma, reset key)."""
-    offset, th_on, th_off = pixel_arrays
+    gain, dark, offset, th_on, th_off = pixel_arrays
     leak, leak_light, px, py = dvs_arrays
     refractory, reset_sigma, reset_key = dvs_scalars
     nc = tables[0].shape[0]
-    scratch = (np.empty((nc, NCOEF)), np.zeros(nc, np.bool_), np.empty(light.shape[1], np.int64),
+    scratch = (np.empty((nc, NCOEF)), np.zeros(nc, np.bool_), np.empty(current.shape[0], np.int64),
                np.empty(NZ, np.float32), np.empty(2 * NZ, np.float32), np.empty(NZ, np.int64))
     for p in range(lo, hi):
         ll = leak_light[p] if leak_light.shape[0] > 0 else -1.0
-        n = _pixel(p, light[p], frame, (offset[p], th_on[p], th_off[p], refractory), tables,
+        n = _pixel(p, current, frame, (gain[p], dark[p], offset[p], th_on[p], th_off[p], refractory), tables,
                    (leak[p], ll, reset_sigma, reset_key, px[p], py[p]), state, key, bufs, n, cap, scratch, stats)
         if n < 0:
             return -1

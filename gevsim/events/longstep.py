@@ -78,7 +78,7 @@ class LongStepBrightness:
     dtype = BRIGHTNESS_DTYPE
 
     def __init__(self, pr: Photoreceptor, dvs: BrightnessEmulator, *, frame_s: float, n_sub: int,
-                 eps: float = EPS, max_frames_log2: int = 4, seed: int = 0):
+                 eps: float = EPS, max_frames_log2: int = 6, seed: int = 0):
         from scipy.special import ndtri
 
         p = pr.params
@@ -112,7 +112,7 @@ class LongStepBrightness:
         self.gain, self.dark_a = pr.gain, pr.dark_a
         n = pr.gain.size
         offset = (pr.offset_ln if pr.offset_ln is not None else np.zeros(n)).astype(np.float32)
-        self.pixel_arrays = (offset, dvs.threshold_on_ln, dvs.threshold_off_ln)
+        self.pixel_arrays = (self.gain, self.dark_a, offset, dvs.threshold_on_ln, dvs.threshold_off_ln)
         self.dvs_arrays = (dvs.leak_ln_per_s, dvs.leak_light, dvs._px_x, dvs._px_y)
         self.dvs_scalars = (float(dvs.params.refractory_s), float(dvs.params.reset_noise_ln), np.uint64(dvs.reset_key))
         ref, v_prev = dvs.ref.copy(), dvs.v_prev.copy()
@@ -141,8 +141,7 @@ class LongStepBrightness:
             raise ValueError(f"every frame must last frame_s = {self.frame_s!r} s")
         if count_invalid(current, nonnegative=True):
             raise ValueError("photocurrent must be finite and >= 0")
-        flat = current.reshape(len(t), -1) * self.gain + self.dark_a  # total photocurrent, as the reference
-        light = np.ascontiguousarray(flat.T)  # (P, F): a pixel's frames together
+        light = np.ascontiguousarray(current.reshape(len(t), -1), dtype=np.float64)
         while True:
             cap = self.cap
             fill, state, stats, bufs = self._attempt(light, (prev, t, self.n_sub, self.frames), cap)
@@ -162,14 +161,14 @@ class LongStepBrightness:
     def _attempt(self, light: np.ndarray, frame: tuple, cap: int) -> tuple[np.ndarray, tuple, np.ndarray, tuple]:
         """One run of the chunk from copies of the state, blocks of :data:`BLOCK` pixels on numba's thread
         count, each with room for ``cap`` events: (events per block (-1: out of room), state, stats, buffers)."""
-        nb = (light.shape[0] + BLOCK - 1) // BLOCK
+        nb = (light.shape[1] + BLOCK - 1) // BLOCK
         state = tuple(a.copy() for a in self.state)
         stats = self.stats.copy()
         bufs = (np.empty(nb * cap, np.int64), np.empty(nb * cap, np.int16), np.empty(nb * cap, np.int16),
                 np.empty(nb * cap, np.bool_))
 
         def block(b: int) -> int:
-            n = kern.run_pixels(b * BLOCK, min(light.shape[0], (b + 1) * BLOCK), light, frame, self.pixel_arrays,
+            n = kern.run_pixels(b * BLOCK, min(light.shape[1], (b + 1) * BLOCK), light, frame, self.pixel_arrays,
                                 self.tables, self.dvs_arrays, self.dvs_scalars, state, self.key, bufs, b * cap,
                                 (b + 1) * cap, stats)
             return n - b * cap if n >= 0 else -1

@@ -9,10 +9,13 @@ the same inter-event intervals and (for a signal) the same event phases."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from gevsim.events import _longstep
@@ -161,3 +164,59 @@ def test_candidates_and_bad_input():
         long.process(np.full((2, 2, 2), i0), t0 + np.array([FRAME_S, 3 * FRAME_S]))
     with pytest.raises(ValueError, match="finite and >= 0"):
         long.process(np.full((1, 2, 2), -1.0), t0 + np.array([FRAME_S]))
+
+
+@functools.cache
+def one_pixel() -> LongStepBrightness:
+    return LongStepBrightness(*started(1.0, shape=(1, 1))[:2], frame_s=FRAME_S, n_sub=N_SUB)
+
+
+def transition(long: LongStepBrightness, c: int, itot: float) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, Q): candidate c's exact transition of (x, r, y) as the kernel draws it, for total photocurrent itot."""
+    prs = long.tables[-1]
+    u, alpha, var = _longstep._light(itot, *prs[:6])
+    g = long.glob[c]
+    a, coup, s1, a1, q, _, _ = _longstep._coefficients(long.cand[c] * prs[_longstep.H0], alpha, var, prs[2], prs[3],
+                                                      g[0], g[1], g[6], g[7])
+    phi = np.array([[a, 0.0, 0.0], [0.0, g[2], 0.0], [coup, g[3], g[0]]])
+    b = np.array([[s1, 0.0, 0.0], [0.0, g[4], 0.0], [a1, g[5], q]])
+    return phi, b @ b.T
+
+
+@settings(max_examples=30, deadline=None)
+@given(lux=st.floats(0.01, 1e4), c=st.integers(1, 13))
+def test_a_leap_is_the_composition_of_its_base_steps(lux, c):
+    """The leap's transition (mean map and noise covariance of photoreceptor pole, read state and output) is
+    exactly that of its L base steps in a row: Phi_L = Phi_1^L, Q_L = sum_k Phi_1^k Q_1 Phi_1^k^T."""
+    long = one_pixel()
+    itot = photocurrent_a(load_preset("davis346"), lux) + float(long.dark_a[0])
+    phi1, q1 = transition(long, 0, itot)
+    phi, q = transition(long, c, itot)
+    steps = int(long.cand[c])
+    cov, power = np.zeros((3, 3)), np.eye(3)
+    for _ in range(steps):
+        cov = phi1 @ cov @ phi1.T + q1
+        power = phi1 @ power
+    np.testing.assert_allclose(phi, power, rtol=1e-5, atol=1e-12)
+    np.testing.assert_allclose(q, cov, rtol=1e-4, atol=1e-6 * float(np.max(np.abs(cov))))
+
+
+@settings(max_examples=50, deadline=None)
+@given(lux=st.floats(0.01, 1e4), c=st.integers(1, 13), dx=st.floats(-0.3, 0.3), dy=st.floats(-0.3, 0.3),
+       r=st.floats(-0.03, 0.03))
+def test_the_mean_over_a_leap_stays_within_the_bound(lux, c, dx, dy, r):
+    """docs/long-steps.md's lemma: from (x, r, y) the output's mean at every base step of the leap lies in
+    [u + min(y - u, x - u) (times rho(h) when positive) - g_r r-, u + max(...) (times rho(h) when negative)
+    + g_r r+]."""
+    long = one_pixel()
+    itot = photocurrent_a(load_preset("davis346"), lux) + float(long.dark_a[0])
+    phi1, _ = transition(long, 0, itot)
+    rho = _longstep._coefficients(long.cand[c] * FRAME_S / N_SUB, *_longstep._light(itot, *long.tables[-1][:6])[1:],
+                                  1.0, long.tables[-1][3], *long.glob[c][[0, 1, 6, 7]])[6]
+    top, bottom = max(dx, dy), min(dx, dy)
+    hi = (top if top >= 0 else rho * top) + long.g_r * max(r, 0.0)
+    lo = (bottom if bottom <= 0 else rho * bottom) - long.g_r * max(-r, 0.0)
+    state = np.array([dx, r, dy])  # deviations from u (the read state's mean is 0)
+    for _ in range(int(long.cand[c])):
+        state = phi1 @ state
+        assert lo - 1e-12 <= state[2] <= hi + 1e-12
