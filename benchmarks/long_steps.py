@@ -56,7 +56,7 @@ def run(shape: tuple[int, int], chip_lux: float, span_s: float, reps: int, leak:
                                                                           leak_light_hz_per_a=0.0))
     level = scene(shape, preset, chip_lux)
     limit = coarsest_step_s(preset.photoreceptor, preset.noise, float(level.max()))
-    n_sub = max(1, math.ceil(FRAME_S / limit - 1e-9))
+    n_sub = max(1, math.ceil(FRAME_S / limit - 1e-9)) if limit is not None else 1
     pr, dvs = running_sensor(preset, shape, 1)
     t0 = start_running(pr, dvs, level[None], FRAME_S / n_sub, burn_in_s=FRAME_S)
     frames = int(round(span_s / FRAME_S))
