@@ -219,4 +219,4 @@ def test_the_mean_over_a_leap_stays_within_the_bound(lux, c, dx, dy, r):
     state = np.array([dx, r, dy])  # deviations from u (the read state's mean is 0)
     for _ in range(int(long.cand[c])):
         state = phi1 @ state
-        assert lo - 1e-12 <= state[2] <= hi + 1e-12
+        assert lo - 1e-9 <= state[2] <= hi + 1e-9  # the kernel keeps 1e-6 of margin
