@@ -40,8 +40,9 @@ CHUNK_BYTES_BASE, CHUNK_BYTES_PER_EMULATOR = 8, 4
 #: A run's chunks, unless its config sets ``chunk_steps``, take this share of the memory the process may use
 #: (:func:`gevsim._resources.usable_memory`: installed memory, or ``ulimit -v`` where lower) ...
 CHUNK_MEMORY_FRACTION = 1 / 16
-#: ... and at most this much on any machine: a chunk of 256 MiB holds 11 million pixel-steps with all four emulators,
-#: and larger chunks run no faster (benchmarks/memory_chunks.py); a 1280x720 run then peaks at about 1 GB.
+#: ... and at most this much on any machine: 11 million pixel-steps with all four emulators, 12 steps at 1280x720,
+#: which step as fast as 48 or 256 (benchmarks/memory_chunks.py); a 1280x720 run of office peaks at 1.4 GB whatever
+#: its duration (5.9 GB with 256-step chunks).
 CHUNK_MEMORY_CAP_BYTES = 256 * 2**20
 #: The most steps a chunk sized to the budget takes (the former fixed ``chunk_steps``).
 MAX_CHUNK_STEPS = 256

@@ -233,6 +233,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
         wr.close(t_end_us=end_us, before_commit=clock.timed("before_commit", before_commit) if before_commit else None)
     clock.lap("hdf5", t)
     stage = clock.seconds
+    log.info("seconds by stage: %s", ", ".join(f"{k} {v:.3g}" for k, v in stage.items()))
     pixel_s = stage["mix"] + stage["photoreceptor"]
     return RunSummary(
         out=str(out), width=w, height=h, steps=n_steps, duration_s=setup.duration_s, frames=len(frame_t),
