@@ -386,10 +386,10 @@ def run_config(study: Study, params: dict, *, seed: int | None = None) -> Emulat
 
 def run_id(study: Study, params: dict) -> str:
     """Identity of a run: its base settings and parameters (not the number of repeats, so a study given
-    more repeats keeps the finished ones; not chunk_steps, which no result depends on), the contents of every file its scene is made of (manifest,
-    builder, textures: :func:`gevsim.render.inputs.scene_digest`), the contents of its sensor preset
-    (:func:`gevsim.pixel.presets.preset_digest`) and the gevsim version. A rerun after any of them changed
-    computes the run again."""
+    more repeats keeps the finished ones; not chunk_steps, which no result depends on), the contents of
+    every file its scene is made of (manifest, builder, textures: :func:`gevsim.render.inputs.scene_digest`),
+    the contents of its sensor preset (:func:`gevsim.pixel.presets.preset_digest`) and the gevsim version.
+    A rerun after any of them changed computes the run again."""
     from gevsim.pixel.presets import preset_digest
     from gevsim.render.inputs import scene_digest
 
