@@ -227,4 +227,6 @@ def test_the_mean_over_a_leap_stays_within_the_bound(lux, c, dx, dy, r):
     state = np.array([dx, r, dy])  # deviations from u (the read state's mean is 0)
     for _ in range(int(long.cand[c])):
         state = phi1 @ state
-        assert lo - 1e-9 <= state[2] <= hi + 1e-9  # the kernel keeps 1e-6 of margin
+        # Within a tenth of the 1e-6 margin the kernel keeps: iterating phi over thousands of base steps rounds
+        # differently from the closed-form rho(h) (5.6e-9 at lux 0.25, c = 13, found by hypothesis).
+        assert lo - 1e-7 <= state[2] <= hi + 1e-7
