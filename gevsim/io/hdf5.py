@@ -217,9 +217,9 @@ class EventWriter:
             raise ValueError(f"invalid stream name {stream!r}: a non-empty name without '/', not 'frames'")
         if stream in _STANDARD and dtype != _STANDARD[stream]:
             raise TypeError(f"stream {stream!r} must have dtype {_STANDARD[stream]}, got {dtype}")
+        self._in_order()  # before any look into the file too: a lookup can make HDF5 flush and allocate
         if stream in self._file:
             raise ValueError(f"{stream!r} already exists in the file and is not an event stream")
-        self._in_order()
         state = _Stream(self._file.create_group(stream), dtype, self._filters)
         self._streams[stream] = state
         return state
@@ -271,13 +271,13 @@ class EventWriter:
         """Store ``array`` as a dataset at ``path_in_file`` (e.g. ``"thresholds/on"``) with its
         ``units`` and ``meaning`` (attributes) and any other ``attrs``."""
         self._check_open()
+        self._in_order()
         if path_in_file in self._file:
             raise ValueError(f"{path_in_file!r} already exists in {self.path}")
         if path_in_file.strip("/") in ("ms_to_idx", "t_offset"):
             raise ValueError(f"{path_in_file!r} at the root is reserved for the DSEC layout of the brightness stream")
         array = np.asarray(array)
         ensure_room(self.path, array.nbytes)
-        self._in_order()
         opts = _filters(self._filters, array.dtype) if array.ndim and array.size else {}
         self._file.create_dataset(path_in_file, data=array, **opts)
         _describe(self._file[path_in_file], units, meaning)
