@@ -79,6 +79,11 @@ class _PngStrip(Writer):
         Image.fromarray(np.concatenate(self.rows, axis=0)).save(self.path, format="PNG", pnginfo=info)
 
 
+def gif_delay_ms(fps: float) -> int:
+    """A GIF frame's delay at ``fps``: whole hundredths of a second, as GIF stores them (30 fps plays at 33.3)."""
+    return 10 * max(1, round(100 / fps))
+
+
 class _GifStream(Writer):
     """An endless-loop GIF written frame by frame, as Pillow's GIF writer makes it but without holding the
     frames: the first picture whole (its median-cut palette of at most 256 colours the global colour
@@ -87,7 +92,7 @@ class _GifStream(Writer):
 
     def __init__(self, fh: IO[bytes], fps: float):
         self.fh = fh
-        self.delay_ms = 10 * max(1, round(100 / fps))  # whole hundredths of a second, as GIF stores them
+        self.delay_ms = gif_delay_ms(fps)
         self.previous: np.ndarray | None = None
 
     def append(self, picture: np.ndarray) -> None:

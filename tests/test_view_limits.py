@@ -204,3 +204,16 @@ def test_a_failure_while_streaming_leaves_no_partial_file(good, tmp_path, monkey
     with pytest.raises(RuntimeError, match="disk gone"):
         view(good, out, window_us=500)
     assert len(calls) == 3 and [p.name for p in tmp_path.iterdir()] == ["x.gif"] and out.read_bytes() == before
+
+
+def test_a_gif_says_when_it_cannot_play_at_the_asked_frame_rate(long_file, tmp_path, capsys):
+    """A GIF stores whole 1/100 s delays: --fps 30 plays at 33.3 fps, and the CLI says so (issue 36's attack
+    noted it was only in the docs); 25 fps is stored exactly and nothing is added."""
+    from gevsim.view_writer import gif_delay_ms
+
+    assert (gif_delay_ms(30), gif_delay_ms(25), gif_delay_ms(100), gif_delay_ms(1000)) == (30, 40, 10, 10)
+    for fps, said in ((30, " (a GIF stores whole 1/100 s: it plays at 33.3 fps, not 30)"), (25, "")):
+        out = tmp_path / f"v{fps}.gif"
+        assert main(["view", str(long_file), "--out", str(out), "--window-ms", "1000", "--end-ms", "3000",
+                     "--fps", str(fps)]) == 0
+        assert capsys.readouterr().err == f"gevsim: wrote {out}{said}\n"

@@ -56,7 +56,14 @@ def cmd_view(args: argparse.Namespace) -> int:
     out = view(args.file, args.out, window_us=ms_to_us(args.window_ms, "--window-ms"), streams=streams,
                fps=args.fps, start_us=ms_to_us(args.start_ms, "--start-ms"), end_us=end_us,
                max_frames=MAX_FRAMES if args.max_frames is None else args.max_frames)
-    print(f"gevsim: wrote {out}", file=sys.stderr)
+    played = ""
+    if str(out).lower().endswith(".gif"):  # a GIF stores whole 1/100 s delays: say where --fps was rounded
+        from gevsim.view_writer import gif_delay_ms
+
+        fps = 1000.0 / gif_delay_ms(args.fps)
+        if abs(fps - args.fps) > 1e-3 * args.fps:
+            played = f" (a GIF stores whole 1/100 s: it plays at {fps:.3g} fps, not {args.fps:g})"
+    print(f"gevsim: wrote {out}{played}", file=sys.stderr)
     return 0
 
 
