@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from gevsim.cli._common import _emulator_names, _progress, _quiet_dask, _render_overrides
 from gevsim.errors import ConfigError
+
+T = TypeVar("T")
 
 
 def cmd_study(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from gevsim.experiments.executors import make_executor
     from gevsim.experiments.report import write_study_outputs
     from gevsim.experiments.report_tables import comparison_table
     from gevsim.experiments.study import load_study
@@ -51,13 +54,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     if part is not None or args.merge:
         return _study_parts(args, study, part)
     with exclusive(args.out, what="study", kind="study"):  # a second study on this folder is refused before any work
-        with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
-            update, close = _progress(f"study {study.name}", not args.quiet, unit="job")
-            try:
-                rows = run_study(study, args.out, cache_dir=args.cache, executor=executor, progress=update,
-                                 keep_files=args.keep_files)
-            finally:
-                close()
+        rows = _in_pool(args, f"study {study.name}", "job", lambda executor, update: run_study(
+            study, args.out, cache_dir=args.cache, executor=executor, progress=update, keep_files=args.keep_files))
         report = write_study_outputs(args.out, study, rows)
     print(comparison_table(rows, study))
     print(f"gevsim: {len(rows)} runs x {study.base['repeats']} repeats; report {report}", file=sys.stderr)
@@ -68,7 +66,6 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     import dataclasses
 
     from gevsim.experiments.dataset import generate, load_dataset_config
-    from gevsim.experiments.executors import make_executor
     from gevsim.io import exclusive
 
     part = _part(args)
@@ -89,17 +86,26 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     _quiet_dask(args)
     if part is not None or args.merge:
         return _dataset_parts(args, config, part)
-    with exclusive(args.out, what="dataset", kind="dataset"), \
-            make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
-        update, close = _progress("dataset", not args.quiet, unit="seq")
-        try:
-            summary = generate(config, args.out, executor=executor, cache_dir=args.cache, progress=update)
-        finally:
-            close()
+    with exclusive(args.out, what="dataset", kind="dataset"):
+        summary = _in_pool(args, "dataset", "seq", lambda executor, update: generate(
+            config, args.out, executor=executor, cache_dir=args.cache, progress=update))
     print(f"gevsim: {summary['sequences']} sequences: {summary['done']} made, {summary['skipped']} already done; "
           f"{summary['events']} events ({', '.join(f'{k} {v}' for k, v in summary['counts'].items())}); "
           f"wrote {args.out} in {summary['seconds']:.1f} s", file=sys.stderr)
     return 0
+
+
+def _in_pool(args: argparse.Namespace, desc: str, unit: str, work: Callable[[Any, Any], T]) -> T:
+    """``work(executor, progress)`` in the executor the flags name (``--executor``, ``--workers``,
+    ``--scheduler``), with a progress bar closed however the work ends."""
+    from gevsim.experiments.executors import make_executor
+
+    with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
+        update, close = _progress(desc, not args.quiet, unit=unit)
+        try:
+            return work(executor, update)
+        finally:
+            close()
 
 
 def _part(args: argparse.Namespace):
@@ -134,7 +140,6 @@ def _merge_line(args: argparse.Namespace, state: str, left: str) -> str:
 def _dataset_parts(args: argparse.Namespace, config, part) -> int:
     """``gevsim dataset --part I/N`` (make a part; the last one merges) or ``--merge`` (only merge)."""
     from gevsim.experiments.dataset_parts import generate_part, merge
-    from gevsim.experiments.executors import make_executor
 
     if part is None:
         merged = merge(config, args.out)
@@ -144,12 +149,8 @@ def _dataset_parts(args: argparse.Namespace, config, part) -> int:
         print(f"gevsim: merged {merged['moved']} sequences into {args.out}; dataset.json lists "
               f"{merged['sequences'] - merged['missing']} of {merged['sequences']}{missing}{busy}", file=sys.stderr)
         return 0
-    with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
-        update, close = _progress(f"dataset part {part}", not args.quiet, unit="seq")
-        try:
-            summary = generate_part(config, args.out, part, executor=executor, cache_dir=args.cache, progress=update)
-        finally:
-            close()
+    summary = _in_pool(args, f"dataset part {part}", "seq", lambda executor, update: generate_part(
+        config, args.out, part, executor=executor, cache_dir=args.cache, progress=update))
     print(f"gevsim: part {part}: {summary['sequences']} sequences: {summary['done']} made, {summary['skipped']} "
           f"already done; wrote {summary['out']} in {summary['seconds']:.1f} s", file=sys.stderr)
     left = summary["unfinished"]
@@ -159,7 +160,6 @@ def _dataset_parts(args: argparse.Namespace, config, part) -> int:
 
 def _study_parts(args: argparse.Namespace, study, part) -> int:
     """``gevsim study --part I/N`` (run a part; the last one merges and reports) or ``--merge``."""
-    from gevsim.experiments.executors import make_executor
     from gevsim.experiments.report import write_study_outputs
     from gevsim.experiments.report_tables import comparison_table
     from gevsim.experiments.study_run import merge_study, run_study_part
@@ -167,13 +167,9 @@ def _study_parts(args: argparse.Namespace, study, part) -> int:
     if part is None:
         rows = merge_study(study, args.out)  # a run with unfinished repeats is one line naming it
     else:
-        with make_executor(args.executor, workers=args.workers, scheduler=args.scheduler) as executor:
-            update, close = _progress(f"study {study.name} part {part}", not args.quiet, unit="job")
-            try:
-                found, info = run_study_part(study, args.out, part, cache_dir=args.cache, executor=executor,
-                                             progress=update, keep_files=args.keep_files)
-            finally:
-                close()
+        found, info = _in_pool(args, f"study {study.name} part {part}", "job", lambda executor, update: run_study_part(
+            study, args.out, part, cache_dir=args.cache, executor=executor, progress=update,
+            keep_files=args.keep_files))
         print(f"gevsim: part {part}: {info['jobs']} jobs: {info['made']} made, {info['jobs'] - info['made']} "
               f"already done; wrote {info['out']}", file=sys.stderr)
         left = info["unfinished"]
