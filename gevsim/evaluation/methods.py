@@ -24,8 +24,8 @@ from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.emulation.frames import file_log_mode, linear_intensity
 from gevsim.errors import ConfigError, suggest
+from gevsim.evaluation.streams import contrast_steps, decoding_inputs, frame_windows, stream_of
 from gevsim.events import decode
-from gevsim.events.gradient import check_ternary_state
 from gevsim.io import EventReader
 from gevsim.reconstruct import brightness
 from gevsim.reconstruct.gradient import GradientReconstructor
@@ -53,58 +53,14 @@ class Method:
         return EMULATORS[self.emulator].stream
 
 
-def _stream(r: EventReader, emulator: str) -> str:
-    stream = EMULATORS[emulator].stream
-    if stream not in r.streams:
-        raise ConfigError(f"holds no {stream} stream (emulate with {emulator!r} among the emulators)",
-                          source=str(r.path))
-    return stream
-
-
-def _windows(r: EventReader, stream: str, t_us) -> list[list[tuple[int, int]]]:
-    """Per frame k the read windows covering the events in (t_us[k-1], t_us[k]] (from t = 0 for
-    k = 0), each of at most :data:`~gevsim.io.event_reader.WINDOW_EVENTS` events: methods read the
-    stream window by window, so memory is bounded whatever the duration."""
-    out, start = [], 0
-    for t in t_us:
-        out.append(r.windows(stream, start, int(t) + 1))
-        start = max(start, int(t) + 1)
-    return out
-
-
-def _thresholds(r: EventReader, emulator: str, shape: tuple[int, ...]) -> np.ndarray:
-    """An emulator's stored thresholds: ``shape`` finite numbers > 0 (a file is untrusted), as float64."""
-    key = layout.thresholds_key(emulator)
-    theta = r.array(key)
-    if theta.shape != shape or theta.dtype.kind not in "iuf":
-        raise ConfigError(f"corrupt {key}: expected {shape} thresholds, got shape {theta.shape} of {theta.dtype}",
-                          source=str(r.path))
-    bad = ~(np.isfinite(theta) & (theta > 0))
-    if np.any(bad):
-        raise ConfigError(f"corrupt {key}: thresholds must be finite and > 0, got {float(theta[bad][0])} "
-                          f"({np.count_nonzero(bad)} of {theta.size})", source=str(r.path))
-    return theta.astype(np.float64)
-
-
-def _decoding_inputs(r: EventReader, emulator: str, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """The stored thresholds and initial ternary state of a gradient stream, checked (a file is untrusted:
-    the decoder indexes its tables with these values): ConfigError naming the file otherwise."""
-    theta = _thresholds(r, emulator, (2,) + tuple(shape))
-    try:
-        state = check_ternary_state(r.array(layout.initial_state_key(emulator)), shape=(shape[0], shape[1]))
-    except ValueError as exc:
-        raise ConfigError(f"corrupt {layout.initial_state_key(emulator)}: {exc}", source=str(r.path)) from None
-    return theta, state
-
-
 def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:
     """Decode ``emulator``'s gradient events up to each frame and solve with ``solver``."""
     def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
-        stream = _stream(r, emulator)
-        theta, state = _decoding_inputs(r, emulator, gt.shape[1:])
+        stream = stream_of(r, emulator)
+        theta, state = decoding_inputs(r, emulator, gt.shape[1:])
         reconstructor = GradientReconstructor(gt.shape[1:], theta, rc=rc, method=solver, c=c)
         frames = np.empty_like(gt)
-        for k, windows in enumerate(_windows(r, stream, t_us)):
+        for k, windows in enumerate(frame_windows(r, stream, t_us)):
             for a, b in windows:
                 state = decode(r.read(stream, a, b), state)
             frames[k] = reconstructor.frame(state)
@@ -112,28 +68,18 @@ def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarra
     return run
 
 
-def _contrast(r: EventReader, contrast_ln: float | None) -> tuple[float, float]:
-    """ON/OFF contrast steps: given, else the DVS thresholds stored in the file, else the default."""
-    if contrast_ln is not None:
-        return float(contrast_ln), float(contrast_ln)
-    if layout.thresholds_key("dvs") not in r:
-        return brightness.CONTRAST_LN, brightness.CONTRAST_LN  # frame mode stores no DVS thresholds
-    on, off = (float(v) for v in _thresholds(r, "dvs", (2,)))
-    return on, off
-
-
 def _brightness(make: Callable[..., brightness.EventFilter]) -> Callable[..., np.ndarray]:
     """Feed the DVS events, window by window, to the filter ``make(r, t0_us, (h, w), on, off)``
     and take its estimate at each frame time."""
     def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
-        on, off = _contrast(r, contrast_ln)
-        stream = _stream(r, "dvs")
+        on, off = contrast_steps(r, contrast_ln)
+        stream = stream_of(r, "dvs")
         t_us = np.asarray(t_us, np.int64)
         first = r.first_t_us(stream)
         t0 = int(t_us[0]) if first is None or first > t_us[-1] else min(int(t_us[0]), first)
         filt = make(r, t0, gt.shape[1:], on, off)
         frames = np.empty(gt.shape)
-        for k, windows in enumerate(_windows(r, stream, t_us)):
+        for k, windows in enumerate(frame_windows(r, stream, t_us)):
             for a, b in windows:
                 filt.feed(r.read(stream, a, b), until_us=b - 1)
             filt.estimate(int(t_us[k]), frames[k])
