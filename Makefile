@@ -24,7 +24,7 @@ $(PY):
 	$(PYTHON) -m venv $(VENV)
 
 LOCK   := requirements.lock
-EXTRAS := plot,test,dask,denoise,aedat4
+EXTRAS := plot,test,dask,denoise,aedat4,learn
 
 $(STAMP): pyproject.toml $(LOCK) | $(PY)
 	$(PY) -m pip install -q -c $(LOCK) --upgrade pip

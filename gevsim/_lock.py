@@ -41,11 +41,16 @@ def normalise(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
 
 
+def _release(version: str) -> str:
+    """A version without its local label: torch's CPU wheel ``2.13.0+cpu`` is the locked release ``2.13.0``."""
+    return version.partition("+")[0]
+
+
 def compare(pins: dict[str, str]) -> tuple[list[str], list[str]]:
     """(differences, missing): ``'name installed X, locked Y'`` and the locked names not installed."""
     installed = {normalise(d.metadata["Name"]): d.version for d in metadata.distributions() if d.metadata["Name"]}
     differ = [f"{n} {installed[n]} (locked {v})" for n, v in sorted(pins.items())
-              if n in installed and installed[n] != v]
+              if n in installed and installed[n] != v and _release(installed[n]) != v]
     missing = [n for n in sorted(pins) if n not in installed]
     return differ, missing
 
