@@ -7,14 +7,16 @@ the file), ``emulators``, ``duration_s``, ``step_s``, ``chunk_steps``,
 render table) and ``[dataset.randomize]``: ``waveforms`` (types to draw from;
 omitted: keep each scene's own), ``frequency_hz`` (log-uniform, pwm/sinusoid),
 ``duty`` (pwm), ``modulation`` (sinusoid), ``mains_hz`` (choice, mains lamps),
-``light_scale`` (log-uniform, multiplies all light).
+``light_scale`` (log-uniform, multiplies all light). A ``scenes`` entry may name a procedural source
+(:data:`gevsim.learn.sources.SOURCES`, e.g. ``planar``) set by its own table (``[dataset.planar]``).
 
 Sequence ``i`` draws everything from ``default_rng(SeedSequence([seed, i]))``, in
 this order: scene, sensor, then for **every** light group of the scene (in
 manifest order) a waveform type, a uniform phase and what that type draws
 (:meth:`gevsim.illumination.base.Waveform.drawn`), then the
-light scale, then the emulation seed. So any subset of sequences, in any order,
-on any executor, gives identical shards.
+light scale, then the emulation seed; a source's parameters come from their own stream,
+``SeedSequence([seed, i, 1])`` (the same scene whatever lamps are drawn). So any subset of
+sequences, in any order, on any executor, gives identical shards.
 
 Output: ``DIR/shards/seq_{i:05d}.h5`` (the emulation), ``DIR/evreal/seq_{i:05d}/``
 (DVS events, ground truth tone-mapped to uint8) and, written atomically last as
@@ -63,7 +65,7 @@ from gevsim.timebase import TimeGrid
 log = logging.getLogger(__name__)
 
 KEYS = ("sequences", "seed", "scenes", "sensors", "emulators", "duration_s", "step_s", "chunk_steps",
-        "frame_rate_hz", "evreal", "render", "randomize")
+        "frame_rate_hz", "evreal", "render", "randomize", "planar")
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,7 @@ class DatasetConfig:
     evreal: bool = False
     render: dict = field(default_factory=dict)
     randomize: Randomize = Randomize()
+    source_options: dict = field(default_factory=dict)  # procedural source -> its options ([dataset.<source>])
     source: str = ""
     text: str = ""
 
@@ -160,14 +163,16 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     evreal = ds.get("evreal", False)
     if not isinstance(evreal, bool):
         r.fail("dataset.evreal", f"expected true or false, got {evreal!r}")
+    sources = _sources()
     config = DatasetConfig(
-        scenes=_names(r, ds, "dataset", "scenes", None, load, base=path.parent),
+        scenes=_names(r, ds, "dataset", "scenes", None, lambda v: None if v in sources else load(v), base=path.parent),
         sequences=r.number(ds, "sequences", "dataset", positive=True, integer=True, maximum=MAX_SEQUENCES),
         seed=r.number(ds, "seed", "dataset", 0, minimum=0, integer=True),
         sensors=_names(r, ds, "dataset", "sensors", ["davis346"], load_preset, base=path.parent),
         emulators=emulators,
         time=TimeGrid.from_section(ds, source=r.source, where="dataset"),
         evreal=evreal, render=dict(render), randomize=_randomize(r, r.table(ds, "randomize", "dataset.")),
+        source_options={k: s.options(r.table(ds, k, "dataset."), r, f"dataset.{k}") for k, s in sources.items()},
         source=str(path), text=path.read_text())
     if evreal and ("dvs" not in emulators or config.time.frame_rate_hz <= 0):
         r.fail("dataset.evreal", "needs 'dvs' in dataset.emulators and frame_rate_hz > 0 (ground-truth frames)")
@@ -182,11 +187,26 @@ def _waveform(rng: np.random.Generator, rz: Randomize) -> dict:
     return random_spec(kind, rng, rz, phase_rad=phase)
 
 
+def _sources() -> dict:
+    from gevsim.learn.sources import SOURCES
+
+    return SOURCES
+
+
+def scene_sha256(scene: str) -> str:
+    """The digest of a scene's files (:func:`gevsim.render.inputs.scene_digest`), or of a source's code."""
+    from gevsim.render.inputs import scene_digest
+
+    source = _sources().get(scene)
+    return source.digest() if source is not None else scene_digest(scene)
+
+
 @functools.lru_cache(maxsize=64)
 def _group_names(scene: str) -> tuple[str, ...]:
     from gevsim.render import load
 
-    return load(scene).group_names
+    source = _sources().get(scene)
+    return source.group_names if source is not None else load(scene).group_names
 
 
 def sequence_parameters(config: DatasetConfig, index: int) -> dict:
@@ -199,8 +219,13 @@ def sequence_parameters(config: DatasetConfig, index: int) -> dict:
     groups = _group_names(scene) if config.randomize.waveforms else ()
     waveforms = {g: _waveform(rng, config.randomize) for g in groups}
     light_scale = log_uniform(rng, config.randomize.light_scale)
-    return {"index": index, "scene": scene, "sensor": sensor, "waveforms": waveforms, "light_scale": light_scale,
-            "seed": int(rng.integers(2**31))}
+    params = {"index": index, "scene": scene, "sensor": sensor, "waveforms": waveforms, "light_scale": light_scale,
+              "seed": int(rng.integers(2**31))}
+    source = _sources().get(scene)
+    if source is not None:  # its own stream: the same planes and motions whatever the lamps drew
+        own = np.random.default_rng(np.random.SeedSequence([config.seed, index, 1]))
+        params["source"] = source.draw(own, config.source_options.get(scene))
+    return params
 
 
 def sequence_config(config: DatasetConfig, params: dict) -> EmulationConfig:
@@ -227,7 +252,6 @@ def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int, *,
     file per check of many sequences.
     """
     from gevsim.pixel.presets import preset_digest
-    from gevsim.render.inputs import scene_digest
 
     def digest(what: str, name: str, fn: Callable[[str], str]) -> str:
         if digests is None:
@@ -242,7 +266,8 @@ def finished(config: DatasetConfig, out_dir: str | os.PathLike, index: int, *,
         params = sequence_parameters(config, index)
         same = (tomllib.loads(record["config_toml"]) == tomllib.loads(sequence_config(config, params).to_toml())
                 and record["gevsim_version"] == __version__
-                and record["scene_sha256"] == digest("scene", params["scene"], scene_digest)
+                and record["parameters"].get("source") == params.get("source")
+                and record["scene_sha256"] == digest("scene", params["scene"], scene_sha256)
                 and record["sensor_sha256"] == digest("sensor", params["sensor"], preset_digest))
     except (OSError, ValueError, KeyError, TypeError):
         return None
@@ -276,7 +301,6 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     """Make sequence ``index`` unless finished (picklable: what executors run). Returns a small dict."""
     from gevsim.emulation.driver import run
     from gevsim.pixel.presets import preset_digest
-    from gevsim.render.inputs import scene_digest
 
     done = finished(config, out_dir, index)
     if done is not None:
@@ -286,15 +310,17 @@ def run_sequence(config: DatasetConfig, out_dir: str, index: int, *, cache_dir: 
     marker, shard, evreal = _paths(out_dir, index)
     params = sequence_parameters(config, index)
     emulation = sequence_config(config, params)
-    scene_sha256 = scene_digest(params["scene"])  # before the run: an edit during it makes the next run redo it
+    scene_sha = scene_sha256(params["scene"])  # before the run: an edit during it makes the next run redo it
     sensor_sha256 = preset_digest(params["sensor"])
-    summary = run(emulation, shard, cache_dir=cache_dir)
+    source = _sources().get(params["scene"])
+    setup = source.setup(emulation, params["source"]) if source is not None else None
+    summary = run(emulation, shard, cache_dir=cache_dir, setup=setup)
     skipped = _export_evreal(shard, evreal, params) if config.evreal else None
     seconds = time.perf_counter() - start
     record = {"index": index, "parameters": params, "config_toml": emulation.to_toml(), "counts": summary.counts,
               "frames": summary.frames, "width": summary.width, "height": summary.height,
               "shard": str(shard.relative_to(Path(out_dir))), "seconds": seconds, "gevsim_version": __version__,
-              "scene_sha256": scene_sha256, "sensor_sha256": sensor_sha256,
+              "scene_sha256": scene_sha, "sensor_sha256": sensor_sha256,
               "evreal": str(evreal.relative_to(Path(out_dir))) if config.evreal and not skipped else None}
     if skipped:
         record["evreal_skipped"] = skipped
