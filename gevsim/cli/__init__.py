@@ -1,5 +1,5 @@
 """Command line: ``gevsim info``, ``scenes``, ``presets``, ``render``, ``emulate``, ``reconstruct``, ``export``,
-``study``, ``dataset``, ``validate``.
+``study``, ``dataset``, ``validate``, ``train``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
 library; one module per group of commands. Bad input (:class:`~gevsim.errors.ConfigError`)
@@ -27,10 +27,12 @@ from gevsim.cli.info import cmd_info, cmd_presets, cmd_scenes, cmd_validate
 from gevsim.cli.parser import build_parser
 from gevsim.cli.render import cmd_render
 from gevsim.cli.runs import cmd_dataset, cmd_study
+from gevsim.cli.train import cmd_train
 from gevsim.errors import GevsimError, clipped, one_line
 
 __all__ = ["build_parser", "main", "_progress", "cmd_dataset", "cmd_emulate", "cmd_export", "cmd_info",
-           "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_validate", "cmd_view"]
+           "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_train", "cmd_validate",
+           "cmd_view"]
 
 
 def main(argv: list[str] | None = None) -> int:

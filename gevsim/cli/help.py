@@ -62,6 +62,11 @@ COMMANDS: dict[str, tuple[str, list[str]]] = {
               "intervals. Writes results.csv/json, per-pixel maps, plots, event strips and report.md.",
               ["gevsim study experiments/demo.toml --out out/demo_study",
                "gevsim study experiments/demo.toml --out out/demo_study --repeats 8 --workers 2"]),
+    "train": ("Train the learned reconstruction (a FireNet-style recurrent network of ~38 k parameters) on a "
+              "`gevsim dataset` for one event type, with the same loss, data and time budget for each. Writes "
+              "the weights (.npz, which `gevsim reconstruct` runs without PyTorch), their provenance (.json) "
+              "and the loss curve (.png). Needs PyTorch: pip install 'gevsim[learn]'.",
+              ["gevsim train --events dvs --data out/dataset --out out/e2v_dvs.npz --minutes 10"]),
 }
 
 

@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser = add_parser  # type: ignore[method-assign]
 
-    for add in (_listings, _render, _emulate, _reconstruct, _export, _view, _dataset, _validate, _study):
+    for add in (_listings, _render, _emulate, _reconstruct, _export, _view, _dataset, _validate, _study, _train):
         add(sub)
     return parser
 
@@ -215,3 +215,21 @@ def _study(sub: Any) -> None:
     s.add_argument("--keep-files", action="store_true", help="keep every run's HDF5 files")
     _part_options(s, "jobs j, a job being one repeat of one run", "the report")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def _train(sub: Any) -> None:
+    """``gevsim train``."""
+    t = sub.add_parser("train", help="train the learned reconstruction on a `gevsim dataset` (needs gevsim[learn])")
+    t.add_argument("--events", required=True, choices=("dvs", "gradient", "gradient_rc"),
+                   help="the event stream and its input encoding")
+    t.add_argument("--data", required=True, nargs="+", metavar="DIR",
+                   help="a `gevsim dataset` folder (its shards/seq_*.h5) or emulation files (.h5)")
+    t.add_argument("--out", required=True, help="the weights (.npz; replaces only earlier gevsim weights), with "
+                   "their provenance (.json) and loss curve (.png) beside them")
+    t.add_argument("--minutes", type=_positive, default=10.0, help="training time budget (default 10)")
+    t.add_argument("--steps", type=_positive_int, help="stop after this many steps (before the budget ends)")
+    t.add_argument("--seed", type=_non_negative_int, default=0, help="seed of the weights, split and batches")
+    t.add_argument("--reference", default="flicker", choices=("flicker", "no-flicker"),
+                   help="ground truth: as lit at each instant (flicker) or with every lamp at its mean")
+    t.add_argument("--threads", type=_positive_int, help="PyTorch threads (default: PyTorch's)")
+    t.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

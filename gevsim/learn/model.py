@@ -8,7 +8,8 @@ reconstruction with an event camera", WACV 2020, Fig. 2), written here from the 
 (state zero at the start). Unlike FireNet it predicts the ln frame with zero mean (no sigmoid): the
 evaluation sets the level. Its PyTorch twin, for training, is :mod:`gevsim.learn.torch_model`.
 
-Convolutions use zero padding, computed as im2col + one float32 matrix product per layer.
+Convolutions use zero padding, computed as im2col + one matrix product per layer (float32 values, summed
+in float64 in a fixed order: the same bits on every CPU).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gevsim import _portable as pm
 from gevsim.errors import ConfigError
 
 __all__ = ["ARCHITECTURE", "FORMAT", "HIDDEN", "Model", "is_model_file", "parameter_count", "parameter_shapes"]
@@ -74,8 +76,18 @@ class _Im2col:
         return cols.reshape(c * 9, h * w)
 
 
+def _matmul(w: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``w @ cols`` summed in float64 in a fixed order, rounded to float32: the same bits on every CPU (a BLAS
+    product, ~4x faster, picks its kernel, and so its last bits, by the CPU: tests/test_architecture.py)."""
+    return pm.weighted_sum(w, cols, dtype=np.float32)
+
+
 def _sigmoid(x: np.ndarray) -> np.ndarray:
-    return np.float32(0.5) * (np.float32(1.0) + np.tanh(np.float32(0.5) * x))
+    return (1.0 / (1.0 + pm.exp(-x))).astype(np.float32)
+
+
+def _tanh(x: np.ndarray) -> np.ndarray:
+    return (1.0 - 2.0 / (pm.exp(2.0 * x) + 1.0)).astype(np.float32)  # exp overflows to inf: tanh = 1
 
 
 class Model:
@@ -129,7 +141,7 @@ class Model:
         return cls(arrays, metadata, source=source)
 
     def _conv3(self, name: str, cols: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-        out = self.weights[f"{name}.weight"] @ cols
+        out = _matmul(self.weights[f"{name}.weight"], cols)
         out += self.weights[f"{name}.bias"][:, None]
         return out.reshape((-1,) + shape)
 
@@ -140,9 +152,9 @@ class Model:
         reset = _sigmoid(self._conv3(f"{name}.reset", cols, shape))
         w = self.weights[f"{name}.out.weight"]
         n = HIDDEN * 9  # the out gate sees [x, reset * state]: x's columns are those above
-        out = w[:, :n] @ cols[:n] + w[:, n:] @ self._im2col(state * reset)
+        out = _matmul(w[:, :n], cols[:n]) + _matmul(w[:, n:], self._im2col(state * reset))
         out += self.weights[f"{name}.out.bias"][:, None]
-        return state * (1 - update) + np.tanh(out.reshape(x.shape)) * update
+        return state * (1 - update) + _tanh(out.reshape(x.shape)) * update
 
     def _residual(self, name: str, x: np.ndarray) -> np.ndarray:
         shape = x.shape[1:]
@@ -166,7 +178,7 @@ class Model:
             f = self._residual("res1", states[0])
             states[1] = self._gru("gru2", f, states[1])
             f = self._residual("res2", states[1])
-            pred = (self.weights["pred.weight"] @ f.reshape(HIDDEN, -1) + self.weights["pred.bias"][:, None])
+            pred = _matmul(self.weights["pred.weight"], f.reshape(HIDDEN, -1)) + self.weights["pred.bias"][:, None]
             frame = pred.reshape(h, w).astype(np.float64)
             out[k] = frame - frame.mean()
         self._im2col.buffers.clear()  # ~150 MB at 346x260: not kept between sequences
