@@ -6,7 +6,9 @@ frames at the ground-truth times, before the level is set and the frames are sco
 their ``_rc`` twins on the resolution-compressed stream) decode the gradient events
 from the stored initial ternary state up to each frame and solve the Poisson problem
 (Lehtonen et al.); brightness methods (``direct``, ``high_pass``, ``complementary``)
-integrate brightness events (Scheerlinck, Barnes & Mahony 2018).
+integrate brightness events (Scheerlinck, Barnes & Mahony 2018). Learned methods (``e2v`` on brightness events,
+``e2v_gradient`` and ``e2v_gradient_rc`` on gradient events) run the shipped weights of one small recurrent
+network (FireNet's architecture) on each event type's encoding (:mod:`gevsim.learn`).
 
 Adding a method is its algorithm in :mod:`gevsim.reconstruct` plus one entry in
 :data:`METHODS` (colour-science's ``*_METHODS`` pattern).
@@ -83,13 +85,34 @@ def _brightness(make: Callable[..., brightness.EventFilter]) -> Callable[..., np
             for a, b in windows:
                 filt.feed(r.read(stream, a, b), until_us=b - 1)
             filt.estimate(int(t_us[k]), frames[k])
-        if not is_log:  # frame mode compares intensities: undo the log its DVS saw
-            try:
-                frames = linear_intensity(frames, **file_log_mode(r.attrs))
-            except (TypeError, ValueError) as exc:  # the file's log_mode attributes are untrusted
-                raise ConfigError(f"corrupt root attribute log_mode or linlog_threshold: {exc}",
-                                  source=str(r.path)) from None
+        return _in_units(r, frames, is_log)
+    return run
+
+
+def _in_units(r: EventReader, frames: np.ndarray, is_log: bool) -> np.ndarray:
+    """Frames from the DVS's log domain in the ground truth's units: frame mode compares intensities, so the log
+    its DVS saw is undone there."""
+    if is_log:
         return frames
+    try:
+        return linear_intensity(frames, **file_log_mode(r.attrs))
+    except (TypeError, ValueError) as exc:  # the file's log_mode attributes are untrusted
+        raise ConfigError(f"corrupt root attribute log_mode or linlog_threshold: {exc}", source=str(r.path)) from None
+
+
+def _learned(name: str) -> Callable[..., np.ndarray]:
+    """The shipped network ``name`` (:mod:`gevsim.learn.shipped`) on its encoding of its emulator's events at each
+    frame time. Its output is in the units of its input's log domain: undone for DVS events in frame mode (as
+    for the filters); gradient events in frame mode live on the frames' own values, as the Poisson methods'."""
+    def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
+        from gevsim.learn.encode import encode
+        from gevsim.learn.shipped import SHIPPED, shipped
+
+        emulator = SHIPPED[name]
+        stream_of(r, emulator)  # one line naming the file when the stream is missing
+        model = shipped(name)
+        frames = model.run(encode(r, emulator, t_us, gt.shape[1:], contrast_ln=contrast_ln, c=c))
+        return _in_units(r, frames, is_log) if emulator == "dvs" else frames
     return run
 
 
@@ -131,6 +154,9 @@ METHODS: dict[str, Method] = {
     "direct": Method("dvs", _brightness(_direct)),
     "high_pass": Method("dvs", _brightness(_high_pass)),
     "complementary": Method("dvs", _brightness(_complementary), needs_aps=True),
+    "e2v": Method("dvs", _learned("e2v")),
+    "e2v_gradient": Method("gradient", _learned("e2v_gradient")),
+    "e2v_gradient_rc": Method("gradient_rc", _learned("e2v_gradient_rc")),
 }
 
 

@@ -24,7 +24,7 @@ def stream_of(r: EventReader, emulator: str) -> str:
     return stream
 
 
-def frame_windows(r: EventReader, stream: str, t_us) -> list[list[tuple[int, int]]]:
+def frame_windows(r: EventReader, stream: str, t_us: np.ndarray | list[int]) -> list[list[tuple[int, int]]]:
     """Per frame k the read windows covering the events in (t_us[k-1], t_us[k]] (from t = 0 for
     k = 0), each of at most :data:`~gevsim.io.event_reader.WINDOW_EVENTS` events: methods read the
     stream window by window, so memory is bounded whatever the duration."""
