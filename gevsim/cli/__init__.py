@@ -1,5 +1,5 @@
 """Command line: ``gevsim info``, ``scenes``, ``presets``, ``render``, ``emulate``, ``reconstruct``, ``export``,
-``study``, ``dataset``, ``validate``, ``train``.
+``study``, ``dataset``, ``validate``, ``train``, ``score``.
 
 The CLI parses arguments, sets up logging and progress bars and calls the
 library; one module per group of commands. Bad input (:class:`~gevsim.errors.ConfigError`)
@@ -22,7 +22,7 @@ from pathlib import Path
 from gevsim._validate import FieldError
 from gevsim.cli._common import _progress
 from gevsim.cli.emulate import cmd_emulate
-from gevsim.cli.files import cmd_export, cmd_reconstruct, cmd_view
+from gevsim.cli.files import cmd_export, cmd_reconstruct, cmd_score, cmd_view
 from gevsim.cli.info import cmd_info, cmd_presets, cmd_scenes, cmd_validate
 from gevsim.cli.parser import build_parser
 from gevsim.cli.render import cmd_render
@@ -31,8 +31,8 @@ from gevsim.cli.train import cmd_train
 from gevsim.errors import GevsimError, clipped, one_line
 
 __all__ = ["build_parser", "main", "_progress", "cmd_dataset", "cmd_emulate", "cmd_export", "cmd_info",
-           "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_study", "cmd_train", "cmd_validate",
-           "cmd_view"]
+           "cmd_presets", "cmd_reconstruct", "cmd_render", "cmd_scenes", "cmd_score", "cmd_study", "cmd_train",
+           "cmd_validate", "cmd_view"]
 
 
 def main(argv: list[str] | None = None) -> int:

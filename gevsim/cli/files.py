@@ -1,4 +1,4 @@
-"""``gevsim reconstruct`` and ``gevsim export``: commands that read an emulation file."""
+"""``gevsim reconstruct``, ``score``, ``view`` and ``export``: commands that read emulation files."""
 
 from __future__ import annotations
 
@@ -73,4 +73,36 @@ def cmd_export(args: argparse.Namespace) -> int:
     streams = [s for part in args.stream or [] for s in part.split(",") if s] or None
     counts = export(args.file, args.out, args.format, streams=streams, header=args.header)
     print(f"gevsim: wrote {args.out}: " + ", ".join(f"{k} {v}" for k, v in counts.items()), file=sys.stderr)
+    return 0
+
+
+def cmd_score(args: argparse.Namespace) -> int:
+    from gevsim.evaluation.compare import emulation_files, score_files, summarize, table_markdown, write_comparison
+    from gevsim.evaluation.methods import check_method
+    from gevsim.io.ownership import check_folder
+    from gevsim.resources import check_writable
+
+    methods = [m.strip() for m in ",".join(args.method).split(",") if m.strip()]
+    refs = [r.strip() for r in args.reference.split(",") if r.strip()]
+    for m in methods:
+        try:
+            check_method(m)
+        except ValueError as exc:
+            raise ConfigError(str(exc), key="--method") from None
+    if not methods or not refs:
+        raise ConfigError("name at least one method and one reference",
+                          key="--method" if not methods else "--reference")
+    files = emulation_files(args.files)
+    check_folder(args.out, "reconstruction", inputs=files)  # before the work: only an earlier one is replaced
+    check_writable(args.out)
+    update, close = _progress("score", not args.quiet, unit="run")
+    try:
+        rows = score_files(files, methods, refs, progress=update)
+    finally:
+        close()
+    summary = summarize(rows)
+    title = args.title or f"{len(files)} sequences"
+    write_comparison(args.out, rows, summary, title=title, inputs=files)
+    print(f"{title}\n\n{table_markdown(summary)}", end="")
+    print(f"gevsim: wrote {args.out}", file=sys.stderr)
     return 0

@@ -62,6 +62,11 @@ COMMANDS: dict[str, tuple[str, list[str]]] = {
               "intervals. Writes results.csv/json, per-pixel maps, plots, event strips and report.md.",
               ["gevsim study experiments/demo.toml --out out/demo_study",
                "gevsim study experiments/demo.toml --out out/demo_study --repeats 8 --workers 2"]),
+    "score": ("Score reconstruction methods over many emulation files, or every shard of `gevsim dataset` folders "
+              "(held-out sequences): per method and ground truth, the mean MSE and SSIM over the sequences with a 95 % "
+              "Student-t interval. Writes table.md, ssim.png and results.json (every sequence's scores).",
+              ["gevsim score out/heldout --method e2v,direct,dct,e2v_gradient --reference flicker,no-flicker "
+               "--out out/heldout_scores"]),
     "train": ("Train the learned reconstruction (a FireNet-style recurrent network of ~38 k parameters) on a "
               "`gevsim dataset` for one event type, with the same loss, data and time budget for each. Writes "
               "the weights (.npz, which `gevsim reconstruct` runs without PyTorch), their provenance (.json) "

@@ -37,7 +37,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser = add_parser  # type: ignore[method-assign]
 
-    for add in (_listings, _render, _emulate, _reconstruct, _export, _view, _dataset, _validate, _study, _train):
+    for add in (_listings, _render, _emulate, _reconstruct, _export, _view, _dataset, _validate, _study, _train,
+                _score):
         add(sub)
     return parser
 
@@ -233,3 +234,17 @@ def _train(sub: Any) -> None:
                    help="ground truth: as lit at each instant (flicker) or with every lamp at its mean")
     t.add_argument("--threads", type=_positive_int, help="PyTorch threads (default: PyTorch's)")
     t.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def _score(sub: Any) -> None:
+    """``gevsim score``."""
+    s = sub.add_parser("score", help="score reconstruction methods over many emulation files (a dataset's shards)")
+    s.add_argument("files", nargs="+", metavar="PATH", help="emulation files (.h5) or `gevsim dataset` folders")
+    s.add_argument("--method", action="append", required=True,
+                   help="reconstruction methods by full name (as for `gevsim reconstruct`); repeat or comma-separate")
+    s.add_argument("--reference", default="flicker",
+                   help="ground truths, comma-separated: flicker (as lit) and/or no-flicker (lamps at their mean)")
+    s.add_argument("--out", required=True, help="output folder: missing, empty or an earlier gevsim reconstruction "
+                   "output (replaced atomically); anything else is refused")
+    s.add_argument("--title", help="the table's and plot's title (default: the number of sequences)")
+    s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
