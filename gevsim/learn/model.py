@@ -5,8 +5,11 @@ reconstruction with an event camera", WACV 2020, Fig. 2), written here from the 
 3x3 head convolution (C -> 16) with ReLU, a 3x3 ConvGRU (16), a residual block (two 3x3 convolutions of
 16 channels with ReLU, the input added before the second ReLU), a second ConvGRU and residual block, and a
 1x1 prediction convolution (16 -> 1); ~38 k parameters. It is recurrent over the frames of one sequence
-(state zero at the start). Unlike FireNet it predicts the ln frame with zero mean (no sigmoid): the
-evaluation sets the level. Its PyTorch twin, for training, is :mod:`gevsim.learn.torch_model`.
+(state zero at the start). Unlike FireNet it predicts the ln frame with zero mean (no sigmoid: the
+evaluation sets the level), and it predicts a *correction*: the output is the input's last channel (the
+classical reconstruction from the same events, :mod:`gevsim.learn.encode`) plus the prediction. An untrained
+network is thus near the classical method, and a CPU-sized training budget goes into what it gets wrong
+(a residual, as in ResNet: He et al., CVPR 2016) rather than into learning to copy it. Its PyTorch twin, for training, is :mod:`gevsim.learn.torch_model`.
 
 Convolutions use zero padding, computed as im2col + one matrix product per layer (float32 values, summed
 in float64 in a fixed order: the same bits on every CPU).
@@ -27,7 +30,7 @@ from gevsim.errors import ConfigError
 __all__ = ["ARCHITECTURE", "FORMAT", "HIDDEN", "Model", "is_model_file", "parameter_count", "parameter_shapes"]
 
 #: The architecture version stored in a weight file; a file of another version is refused.
-ARCHITECTURE = "firenet-1"
+ARCHITECTURE = "firenet-residual-1"
 #: The ``format`` entry of a weight file's metadata: what marks a file as written by gevsim.
 FORMAT = "gevsim-learned-reconstruction"
 #: Channels of the hidden layers (FireNet: 16).
@@ -179,7 +182,7 @@ class Model:
             states[1] = self._gru("gru2", f, states[1])
             f = self._residual("res2", states[1])
             pred = _matmul(self.weights["pred.weight"], f.reshape(HIDDEN, -1)) + self.weights["pred.bias"][:, None]
-            frame = pred.reshape(h, w).astype(np.float64)
+            frame = pred.reshape(h, w).astype(np.float64) + x[k, -1]  # the correction of the classical channel
             out[k] = frame - frame.mean()
         self._im2col.buffers.clear()  # ~150 MB at 346x260: not kept between sequences
         return out

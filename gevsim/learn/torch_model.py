@@ -70,7 +70,7 @@ class FireNet(nn.Module):
             x = torch.relu(self.head(inputs[:, k]))
             s1 = self.gru1(x, s1)
             s2 = self.gru2(self.res1(s1), s2)
-            frame = self.pred(self.res2(s2))[:, 0]
+            frame = self.pred(self.res2(s2))[:, 0] + inputs[:, k, -1]  # corrects the classical channel
             frames.append(frame - frame.mean(dim=(1, 2), keepdim=True))
         return torch.stack(frames, dim=1)
 

@@ -9,6 +9,7 @@ count (``torch.use_deterministic_algorithms``); the run stops after ``steps`` st
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import platform
@@ -147,6 +148,7 @@ def write_outputs(result: TrainResult, settings: TrainSettings, out: str | os.Pa
     out = Path(out)
     meta = provenance(result, settings, data)
     export(result.model, out, {"encoding": settings.encoding, "provenance": meta})
+    meta = {**meta, "weights_sha256": hashlib.sha256(out.read_bytes()).hexdigest()}  # the JSON names its weights
     atomic_write_text(out.with_suffix(".json"), json.dumps(meta, indent=2, sort_keys=True) + "\n")
     _loss_plot(result, out.with_suffix(".png"), title=f"gevsim train --events {settings.encoding}")
     return meta
