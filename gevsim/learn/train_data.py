@@ -5,6 +5,7 @@ frames; random mini-batches of whole sequences, cropped and flipped."""
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -54,13 +55,25 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
+def _config_digest(folder: Path) -> dict:
+    """The dataset config's SHA-256 (its text as ``dataset.json`` records it) and its sequence count: what
+    regenerates the same shards (dataset.json itself also records each sequence's wall time)."""
+    try:
+        index = json.loads((folder / "dataset.json").read_text())
+        text = index["config_toml"]
+        return {"config_sha256": hashlib.sha256(text.encode()).hexdigest(), "config_source": index.get("source"),
+                "sequences": len(index.get("sequences", []))}
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+
+
 def data_digest(data: Sequence[str | os.PathLike], files: Sequence[Path]) -> dict:
     """Provenance of the training data: each dataset folder's dataset.json SHA-256, or each file's."""
     out: dict = {}
     for item in data:
         path = Path(item)
         if path.is_dir() and (path / "dataset.json").is_file():
-            out[str(path)] = {"dataset.json sha256": _sha256(path / "dataset.json")}
+            out[str(path)] = {"dataset.json sha256": _sha256(path / "dataset.json"), **_config_digest(path)}
         elif path.is_dir():
             out[str(path)] = {"shards sha256": {f.name: _sha256(f) for f in files if f.parent.parent == path}}
         else:
