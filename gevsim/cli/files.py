@@ -97,7 +97,7 @@ def cmd_score(args: argparse.Namespace) -> int:
     check_writable(args.out)
     update, close = _progress("score", not args.quiet, unit="run")
     try:
-        rows = score_files(files, methods, refs, progress=update)
+        rows = score_files(files, methods, refs, c=args.c, progress=update)
     finally:
         close()
     summary = summarize(rows)

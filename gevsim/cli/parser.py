@@ -246,5 +246,6 @@ def _score(sub: Any) -> None:
                    help="ground truths, comma-separated: flicker (as lit) and/or no-flicker (lamps at their mean)")
     s.add_argument("--out", required=True, help="output folder: missing, empty or an earlier gevsim reconstruction "
                    "output (replaced atomically); anything else is refused")
+    s.add_argument("--c", type=_positive, default=3.6, help="Poisson scale c of the gradient methods (paper: 3.6)")
     s.add_argument("--title", help="the table's and plot's title (default: the number of sequences)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -21,7 +21,7 @@ import numpy as np
 from gevsim.errors import ConfigError
 from gevsim.evaluation.runner import REFERENCES, reconstruct_file
 
-__all__ = ["emulation_files", "score_files", "summarize", "table_markdown", "write_comparison"]
+__all__ = ["emulation_files", "paired_difference", "score_files", "summarize", "table_markdown", "write_comparison"]
 
 
 def emulation_files(paths: Iterable[str | os.PathLike]) -> list[Path]:
@@ -45,8 +45,9 @@ def emulation_files(paths: Iterable[str | os.PathLike]) -> list[Path]:
 
 
 def score_files(files: Sequence[Path], methods: Sequence[str], references: Sequence[str] = ("flicker",), *,
-                progress: Callable[[int, int], None] | None = None) -> list[dict]:
-    """One row per file, method and reference: the file's mean ``mse``, ``ssim`` and ``psnr`` over its frames."""
+                c: float = 3.6, progress: Callable[[int, int], None] | None = None) -> list[dict]:
+    """One row per file, method and reference: the file's mean ``mse``, ``ssim`` and ``psnr`` over its frames
+    (``c``: the Poisson scale of the gradient methods, as ``gevsim reconstruct --c``)."""
     for ref in references:
         if ref not in REFERENCES:
             raise ConfigError(f"unknown reference {ref!r}; choose from {', '.join(REFERENCES)}", key="--reference")
@@ -54,8 +55,8 @@ def score_files(files: Sequence[Path], methods: Sequence[str], references: Seque
     for f in files:
         for method in methods:
             for ref in references:
-                rec, gt, _ = reconstruct_file(f, method, reference=ref)
-                rows.append({"file": str(f), "method": method, "reference": ref, "frames": int(len(gt)),
+                rec, gt, _ = reconstruct_file(f, method, reference=ref, c=c)
+                rows.append({"file": str(f), "method": method, "reference": ref, "c": c, "frames": int(len(gt)),
                              **rec.mean_metrics()})
                 if progress is not None:
                     progress(len(rows), total)
@@ -83,6 +84,17 @@ def summarize(rows: Sequence[dict]) -> list[dict]:
             entry[metric], entry[f"{metric}_ci"] = _interval(np.array([r[metric] for r in mine], np.float64))
         out.append(entry)
     return out
+
+
+def paired_difference(rows: Sequence[dict], a: str, b: str, reference: str, metric: str = "ssim") -> dict:
+    """Method ``a`` minus method ``b`` on the same sequences: the mean difference of ``metric`` with its 95 %
+    Student-t half-width over sequences (tighter than comparing two means: the sequences' own difficulty
+    cancels), and ``n``. Sequences scored by only one of them are left out."""
+    by = {(r["file"], r["method"]): r[metric] for r in rows if r["reference"] == reference}
+    files = [f for f in dict.fromkeys(r["file"] for r in rows) if (f, a) in by and (f, b) in by]
+    diff, half = _interval(np.array([by[f, a] - by[f, b] for f in files], np.float64)) if files else (math.nan,) * 2
+    return {"a": a, "b": b, "reference": reference, "metric": metric, "n": len(files), "difference": diff,
+            "ci": half}
 
 
 def table_markdown(summary: Sequence[dict]) -> str:
@@ -134,13 +146,13 @@ def _plot(path: Path, summary: Sequence[dict], title: str) -> None:
 
 
 def write_comparison(out: str | os.PathLike, rows: Sequence[dict], summary: Sequence[dict], *, title: str,
-                     inputs: Sequence[Path]) -> None:
-    """Write ``results.json`` (rows and summary), ``table.md`` and ``ssim.png`` into the folder ``out``
-    (atomically; a reconstruction-kind output: only an earlier one is replaced)."""
+                     inputs: Sequence[Path], notes: str = "") -> None:
+    """Write ``results.json`` (rows and summary), ``table.md`` (with ``notes`` after the table) and ``ssim.png``
+    into the folder ``out`` (atomically; a reconstruction-kind output: only an earlier one is replaced)."""
     from gevsim.io import atomic_dir
 
     with atomic_dir(out, kind="reconstruction", inputs=list(inputs)) as stage:
         (stage / "results.json").write_text(json.dumps({"title": title, "summary": list(summary), "rows": list(rows)},
                                                        indent=1, default=float))
-        (stage / "table.md").write_text(f"# {title}\n\n" + table_markdown(summary))
+        (stage / "table.md").write_text(f"# {title}\n\n" + table_markdown(summary) + (f"\n{notes}\n" if notes else ""))
         _plot(stage / "ssim.png", summary, title)

@@ -111,7 +111,7 @@ def _learned(name: str) -> Callable[..., np.ndarray]:
         emulator = SHIPPED[name]
         stream_of(r, emulator)  # one line naming the file when the stream is missing
         model = shipped(name)
-        frames = model.run(encode(r, emulator, t_us, gt.shape[1:], contrast_ln=contrast_ln, c=c))
+        frames = model.run(encode(r, emulator, t_us, gt.shape[1:], contrast_ln=contrast_ln))  # trained at c = 3.6
         return _in_units(r, frames, is_log) if emulator == "dvs" else frames
     return run
 

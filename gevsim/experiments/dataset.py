@@ -65,7 +65,7 @@ from gevsim.timebase import TimeGrid
 log = logging.getLogger(__name__)
 
 KEYS = ("sequences", "seed", "scenes", "sensors", "emulators", "duration_s", "step_s", "chunk_steps",
-        "frame_rate_hz", "evreal", "render", "randomize", "planar")
+        "frame_rate_hz", "evreal", "aps", "render", "randomize", "planar")
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,7 @@ class DatasetConfig:
     emulators: tuple[str, ...] = ("dvs", "gradient", "gradient_rc")
     time: TimeGrid = TimeGrid()
     evreal: bool = False
+    aps: bool = False  # also APS frames (the complementary filter's input; needs the sensors' [aps])
     render: dict = field(default_factory=dict)
     randomize: Randomize = Randomize()
     source_options: dict = field(default_factory=dict)  # procedural source -> its options ([dataset.<source>])
@@ -160,9 +161,10 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
                        _one_of(tuple(EMULATORS), "emulator"))
     render = r.table(ds, "render", "dataset.")
     check_render_overrides(render, r, "dataset.render")
-    evreal = ds.get("evreal", False)
-    if not isinstance(evreal, bool):
-        r.fail("dataset.evreal", f"expected true or false, got {evreal!r}")
+    evreal, aps = ds.get("evreal", False), ds.get("aps", False)
+    for key, flag in (("evreal", evreal), ("aps", aps)):
+        if not isinstance(flag, bool):
+            r.fail(f"dataset.{key}", f"expected true or false, got {flag!r}")
     sources = _sources()
     config = DatasetConfig(
         scenes=_names(r, ds, "dataset", "scenes", None, lambda v: None if v in sources else load(v), base=path.parent),
@@ -171,7 +173,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         sensors=_names(r, ds, "dataset", "sensors", ["davis346"], load_preset, base=path.parent),
         emulators=emulators,
         time=TimeGrid.from_section(ds, source=r.source, where="dataset"),
-        evreal=evreal, render=dict(render), randomize=_randomize(r, r.table(ds, "randomize", "dataset.")),
+        evreal=evreal, aps=aps, render=dict(render), randomize=_randomize(r, r.table(ds, "randomize", "dataset.")),
         source_options={k: s.options(r.table(ds, k, "dataset."), r, f"dataset.{k}") for k, s in sources.items()},
         source=str(path), text=path.read_text())
     if evreal and ("dvs" not in emulators or config.time.frame_rate_hz <= 0):
@@ -231,7 +233,7 @@ def sequence_parameters(config: DatasetConfig, index: int) -> dict:
 def sequence_config(config: DatasetConfig, params: dict) -> EmulationConfig:
     """The emulation config of one sequence: the dataset's base config with its drawn parameters."""
     base = EmulationConfig(scene=config.scenes[0], sensor=config.sensors[0], emulators=config.emulators,
-                           **asdict(config.time), render=dict(config.render), source=config.source)
+                           **asdict(config.time), render=dict(config.render), source=config.source, aps=config.aps)
     return replace(base, scene=params["scene"], sensor=params["sensor"], seed=params["seed"],
                    light_scale=params["light_scale"], group_waveform=dict(params["waveforms"]))
 

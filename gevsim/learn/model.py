@@ -9,7 +9,8 @@ reconstruction with an event camera", WACV 2020, Fig. 2), written here from the 
 evaluation sets the level), and it predicts a *correction*: the output is the input's last channel (the
 classical reconstruction from the same events, :mod:`gevsim.learn.encode`) plus the prediction. An untrained
 network is thus near the classical method, and a CPU-sized training budget goes into what it gets wrong
-(a residual, as in ResNet: He et al., CVPR 2016) rather than into learning to copy it. Its PyTorch twin, for training, is :mod:`gevsim.learn.torch_model`.
+(a residual, as in ResNet: He et al., CVPR 2016) rather than into learning to copy it. Its PyTorch twin, for
+training, is :mod:`gevsim.learn.torch_model`.
 
 Convolutions use zero padding, computed as im2col + one matrix product per layer (float32 values, summed
 in float64 in a fixed order: the same bits on every CPU).

@@ -11,7 +11,7 @@ from gevsim.cli import main
 from gevsim.emulation.frames import run_frames
 from gevsim.errors import ConfigError
 from gevsim.evaluation import reconstruct_file
-from gevsim.evaluation.compare import emulation_files, summarize, table_markdown
+from gevsim.evaluation.compare import emulation_files, paired_difference, summarize, table_markdown
 
 
 @pytest.fixture(scope="module")
@@ -37,6 +37,16 @@ def test_the_interval_is_student_t_over_sequence_means():
     assert s["mse_ci"] == pytest.approx(0.1 * half)
     (one,) = summarize(rows[:1])
     assert math.isnan(one["ssim_ci"]) and "0.500 |" in table_markdown([one])  # no interval from one sequence
+
+
+def test_a_paired_difference_cancels_what_the_sequences_share():
+    # b is a plus a constant 0.05 on three sequences of very different difficulty: the difference is exact
+    rows = [{"file": f, "method": m, "reference": "flicker", "ssim": s + (0.05 if m == "b" else 0.0)}
+            for f, s in (("x", 0.2), ("y", 0.5), ("z", 0.9)) for m in ("a", "b")]
+    rows.append({"file": "w", "method": "a", "reference": "flicker", "ssim": 0.4})  # only a: left out
+    d = paired_difference(rows, "b", "a", "flicker")
+    assert d["n"] == 3 and d["difference"] == pytest.approx(0.05) and d["ci"] == pytest.approx(0.0, abs=1e-12)
+    assert paired_difference(rows, "b", "a", "no-flicker")["n"] == 0
 
 
 def test_a_dataset_folder_gives_its_shards_in_order_and_a_bad_path_one_error(files, tmp_path):
