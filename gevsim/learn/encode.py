@@ -114,8 +114,8 @@ ENCODINGS: dict[str, Encoding] = {
 }
 
 
-def encode(reader: EventReader, emulator: str, t_us, shape: tuple[int, int], *, contrast_ln: float | None = None,
-           c: float = 3.6) -> np.ndarray:
+def encode(reader: EventReader, emulator: str, t_us: np.ndarray | list[int], shape: tuple[int, int], *,
+           contrast_ln: float | None = None, c: float = 3.6) -> np.ndarray:
     """The network inputs (M, C, H, W) float32 of ``emulator``'s stream at the M frame times ``t_us``
     (a key of :data:`ENCODINGS`; ValueError otherwise). ``contrast_ln``: the DVS contrast step (default:
     the file's DVS thresholds); ``c``: the Poisson scale of the gradient encodings' DCT channel."""
