@@ -18,9 +18,7 @@ Each (run, repeat) is one job (:mod:`gevsim.experiments.repeat`), run here or by
 an executor (:mod:`gevsim.experiments.executors`) from
 :func:`gevsim.experiments.study_run.run_study`; each writes
 ``runs/<id>/r<k>.json`` last and atomically, so a rerun skips finished jobs and
-interrupted studies resume. The run id hashes the run's settings, the contents of
-its scene's files and the gevsim version (:func:`run_id`): after an edit of the
-scene (its manifest, builder or a texture) or an upgrade, a rerun computes anew.
+interrupted studies resume; :func:`run_id` says what makes a rerun compute a run anew.
 
 ```toml
 [study]
@@ -388,13 +386,15 @@ def run_id(study: Study, params: dict) -> str:
     """Identity of a run: its base settings and parameters (not the number of repeats, so a study given
     more repeats keeps the finished ones; not chunk_steps, which no result depends on), the contents of
     every file its scene is made of (manifest, builder, textures: :func:`gevsim.render.inputs.scene_digest`),
-    the contents of its sensor preset (:func:`gevsim.pixel.presets.preset_digest`) and the gevsim version.
-    A rerun after any of them changed computes the run again."""
+    of its sensor preset (:func:`gevsim.pixel.presets.preset_digest`) and of the learned methods' weights, and
+    the gevsim version. A rerun after any of them changed computes the run again."""
+    from gevsim.learn.shipped import weights_digest
     from gevsim.pixel.presets import preset_digest
     from gevsim.render.inputs import scene_digest
 
     base = {k: v for k, v in study.base.items() if k not in ("repeats", "chunk_steps")}
     sensor = params.get("sensor", study.base["sensor"])
     payload = json.dumps({"base": base, "params": params, "scene_sha256": scene_digest(run_scene(study, params)),
-                          "sensor_sha256": preset_digest(sensor), "gevsim": __version__}, sort_keys=True, default=str)
+                          "sensor_sha256": preset_digest(sensor), "gevsim": __version__,
+                          **weights_digest(study.base.get("methods"))}, sort_keys=True, default=str)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]

@@ -10,7 +10,7 @@ from pathlib import Path
 from gevsim.errors import ConfigError
 from gevsim.learn.model import Model
 
-__all__ = ["SHIPPED", "WEIGHTS_DIR", "shipped", "weights_path"]
+__all__ = ["SHIPPED", "WEIGHTS_DIR", "shipped", "weights_digest", "weights_path"]
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 
@@ -37,3 +37,13 @@ def shipped(name: str) -> Model:
     if model.encoding != SHIPPED[name]:
         raise ConfigError(f"holds weights for the {model.encoding!r} encoding, not {SHIPPED[name]!r}", source=str(path))
     return model
+
+
+def weights_digest(methods: object) -> dict:
+    """``{"weights_sha256": {name: SHA-256}}`` of the shipped weights among ``methods`` (a study's list), or
+    ``{}`` when it names none: a study's run identity holds it, so retrained weights score its runs again."""
+    import hashlib
+
+    names = [m for m in (methods if isinstance(methods, (list, tuple)) else ()) if m in SHIPPED]
+    found = {m: hashlib.sha256(weights_path(m).read_bytes()).hexdigest() for m in names if weights_path(m).is_file()}
+    return {"weights_sha256": found} if found else {}
