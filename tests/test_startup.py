@@ -13,7 +13,7 @@ import pytest
 import gevsim
 
 PACKAGE = Path(gevsim.__file__).parent
-HEAVY = ("matplotlib", "colour", "mitsuba", "drjit", "numba", "h5py", "scipy", "OpenEXR")
+HEAVY = ("matplotlib", "colour", "mitsuba", "drjit", "numba", "h5py", "scipy", "OpenEXR", "torch")
 LISTINGS = f"""
 import sys
 import gevsim.cli
