@@ -47,13 +47,14 @@ def cmd_train(args: argparse.Namespace) -> int:
         import torch  # noqa: F401
     except ImportError:
         raise MissingExtraError("gevsim train needs PyTorch: pip install 'gevsim[learn]'") from None
+    from gevsim.evaluation.compare import emulation_files
     from gevsim.learn.train import TrainSettings, train, write_outputs
-    from gevsim.learn.train_data import data_digest, load_sequences, shard_files
+    from gevsim.learn.train_data import data_digest, load_sequences
     from gevsim.plots import _pyplot
 
     _pyplot()  # the loss curve needs matplotlib: say so before the work
     out = Path(args.out)
-    files = shard_files(args.data)
+    files = emulation_files(args.data)
     _check_outputs(out, [*args.data, *files])
     settings = TrainSettings(encoding=args.events, seed=args.seed, minutes=args.minutes, steps=args.steps,
                              threads=args.threads)

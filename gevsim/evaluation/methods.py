@@ -26,8 +26,7 @@ from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.emulation.frames import file_log_mode, linear_intensity
 from gevsim.errors import ConfigError, suggest
-from gevsim.evaluation.streams import contrast_steps, decoding_inputs, frame_windows, stream_of
-from gevsim.events import decode
+from gevsim.evaluation.streams import contrast_steps, decoded_states, frame_windows, stream_of
 from gevsim.io import EventReader
 from gevsim.reconstruct import brightness
 from gevsim.reconstruct.gradient import GradientReconstructor
@@ -58,13 +57,10 @@ class Method:
 def _poisson(solver: str, emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:
     """Decode ``emulator``'s gradient events up to each frame and solve with ``solver``."""
     def run(r: EventReader, gt, t_us, *, c, contrast_ln, is_log) -> np.ndarray:
-        stream = stream_of(r, emulator)
-        theta, state = decoding_inputs(r, emulator, gt.shape[1:])
+        theta, states = decoded_states(r, emulator, t_us, gt.shape[1:])
         reconstructor = GradientReconstructor(gt.shape[1:], theta, rc=rc, method=solver, c=c)
         frames = np.empty_like(gt)
-        for k, windows in enumerate(frame_windows(r, stream, t_us)):
-            for a, b in windows:
-                state = decode(r.read(stream, a, b), state)
+        for k, state in enumerate(states):
             frames[k] = reconstructor.frame(state)
         return frames
     return run

@@ -1,19 +1,23 @@
 """Reading what a reconstruction method needs from an emulation file, checked (a file is untrusted): a stream's
-read windows per frame, its stored thresholds and initial ternary state, the DVS contrast steps. Shared by the
+read windows per frame, its stored thresholds and initial ternary state, the decoded ternary state at each
+frame time, the DVS contrast steps. Shared by the
 methods' registry (:mod:`gevsim.evaluation.methods`) and the learned methods' input encodings (:mod:`gevsim.learn`)."""
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import numpy as np
 
 from gevsim.emulation import layout
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.errors import ConfigError
+from gevsim.events import decode
 from gevsim.events.gradient import check_ternary_state
 from gevsim.io import EventReader
 from gevsim.reconstruct import brightness
 
-__all__ = ["contrast_steps", "decoding_inputs", "frame_windows", "stream_of", "thresholds"]
+__all__ = ["contrast_steps", "decoded_states", "decoding_inputs", "frame_windows", "stream_of", "thresholds"]
 
 
 def stream_of(r: EventReader, emulator: str) -> str:
@@ -58,6 +62,21 @@ def decoding_inputs(r: EventReader, emulator: str, shape: tuple[int, ...]) -> tu
     except ValueError as exc:
         raise ConfigError(f"corrupt {layout.initial_state_key(emulator)}: {exc}", source=str(r.path)) from None
     return theta, state
+
+
+def decoded_states(r: EventReader, emulator: str, t_us: np.ndarray | list[int],
+                   shape: tuple[int, ...]) -> tuple[np.ndarray, Iterator[np.ndarray]]:
+    """``emulator``'s stored thresholds and an iterator over its ternary state decoded from the stored initial
+    state up to each frame time ``t_us[k]``, reading the stream window by window (memory bounded)."""
+    stream = stream_of(r, emulator)
+    theta, state = decoding_inputs(r, emulator, shape)
+
+    def states(state: np.ndarray) -> Iterator[np.ndarray]:
+        for windows in frame_windows(r, stream, t_us):
+            for a, b in windows:
+                state = decode(r.read(stream, a, b), state)
+            yield state
+    return theta, states(state)
 
 
 def contrast_steps(r: EventReader, contrast_ln: float | None) -> tuple[float, float]:

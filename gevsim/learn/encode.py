@@ -29,8 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gevsim.evaluation.streams import contrast_steps, decoding_inputs, frame_windows, stream_of
-from gevsim.events import decode
+from gevsim.evaluation.streams import contrast_steps, decoded_states, frame_windows, stream_of
 from gevsim.io import EventReader
 from gevsim.reconstruct.gradient import GradientReconstructor, quantized_gradients
 
@@ -92,13 +91,10 @@ def _dvs(r: EventReader, t_us, shape, *, contrast_ln, c) -> np.ndarray:
 
 def _gradient(emulator: str, *, rc: bool) -> Callable[..., np.ndarray]:
     def run(r: EventReader, t_us, shape, *, contrast_ln, c) -> np.ndarray:
-        stream = stream_of(r, emulator)
-        theta, state = decoding_inputs(r, emulator, tuple(shape))
+        theta, states = decoded_states(r, emulator, t_us, tuple(shape))
         solver = GradientReconstructor(tuple(shape), theta, rc=rc, method="dct", c=c)
         out = np.empty((len(t_us), 3) + tuple(shape), np.float32)
-        for k, windows in enumerate(frame_windows(r, stream, t_us)):
-            for a, b in windows:
-                state = decode(r.read(stream, a, b), state)
+        for k, state in enumerate(states):
             out[k, 0], out[k, 1] = quantized_gradients(state, theta, rc=rc)
             poisson = solver.frame(state)
             out[k, 2] = poisson - poisson.mean()

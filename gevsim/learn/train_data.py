@@ -1,4 +1,5 @@
-"""The training set of ``gevsim train``: a `gevsim dataset` folder's shards (or a list of emulation files),
+"""The training set of ``gevsim train``: a `gevsim dataset` folder's shards (or a list of emulation files, as
+:func:`gevsim.evaluation.compare.emulation_files` lists them),
 each encoded once (:func:`gevsim.learn.encode.encode`) and held in memory with its zero-mean ground-truth ln
 frames; random mini-batches of whole sequences, cropped and flipped."""
 
@@ -15,8 +16,9 @@ import numpy as np
 
 from gevsim.errors import ConfigError
 from gevsim.io import EventReader
+from gevsim.render.input_files import sha256_of
 
-__all__ = ["Sequence_", "batch", "data_digest", "load_sequences", "shard_files"]
+__all__ = ["Sequence_", "batch", "data_digest", "load_sequences"]
 
 
 @dataclass(frozen=True)
@@ -27,32 +29,6 @@ class Sequence_:
     targets: np.ndarray
     source: str
     encoding: str
-
-
-def shard_files(data: Sequence[str | os.PathLike]) -> list[Path]:
-    """The emulation files named by ``data``: a `gevsim dataset` folder (its ``shards/seq_*.h5``) or .h5
-    files, in order; ConfigError for a missing path or a folder without shards."""
-    files: list[Path] = []
-    for item in data:
-        path = Path(item)
-        if path.is_dir():
-            found = sorted((path / "shards").glob("seq_*.h5"))
-            if not found:
-                raise ConfigError("holds no shards/seq_*.h5 (a `gevsim dataset` folder)", source=str(path))
-            files += found
-        elif path.is_file():
-            files.append(path)
-        else:
-            raise ConfigError("no such file or folder", source=str(path))
-    return files
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _config_digest(folder: Path) -> dict:
@@ -73,11 +49,11 @@ def data_digest(data: Sequence[str | os.PathLike], files: Sequence[Path]) -> dic
     for item in data:
         path = Path(item)
         if path.is_dir() and (path / "dataset.json").is_file():
-            out[str(path)] = {"dataset.json sha256": _sha256(path / "dataset.json"), **_config_digest(path)}
+            out[str(path)] = {"dataset.json sha256": sha256_of(path / "dataset.json"), **_config_digest(path)}
         elif path.is_dir():
-            out[str(path)] = {"shards sha256": {f.name: _sha256(f) for f in files if f.parent.parent == path}}
+            out[str(path)] = {"shards sha256": {f.name: sha256_of(f) for f in files if f.parent.parent == path}}
         else:
-            out[str(path)] = {"sha256": _sha256(path)}
+            out[str(path)] = {"sha256": sha256_of(path)}
     return out
 
 

@@ -16,9 +16,10 @@ from gevsim.emulation import load_config, run
 
 torch = pytest.importorskip("torch")
 
+from gevsim.evaluation.compare import emulation_files  # noqa: E402
 from gevsim.learn.model import Model  # noqa: E402
 from gevsim.learn.train import TrainSettings, loss_of, train  # noqa: E402
-from gevsim.learn.train_data import _flip, load_sequences, shard_files  # noqa: E402
+from gevsim.learn.train_data import _flip, load_sequences  # noqa: E402
 
 DATA = Path(__file__).parents[1] / "data"
 
@@ -48,7 +49,7 @@ def _loss_on(model, sequence) -> float:
 
 
 def test_a_tiny_run_lowers_the_loss_and_the_same_seed_gives_the_same_weights(dataset):
-    sequences = load_sequences(shard_files([dataset]), "dvs")
+    sequences = load_sequences(emulation_files([dataset]), "dvs")
     assert [s.inputs.shape for s in sequences] == [(6, 6, 24, 32)] * 2
     result = train(sequences, replace(TINY, seed=3, steps=20, lr=3e-3))
     assert result.steps == 20 and result.n_train == result.n_validation == 1
