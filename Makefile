@@ -6,7 +6,8 @@
 #               flicker/noise counterfactuals and reconstructions; table + report in
 #               out/demo_study (report.md)
 #   make test   runs the test suite, ruff and mypy included (tests/test_lint.py,
-#               tests/test_typing.py); pytest -m "not slow" leaves out the seconds-long renders
+#               tests/test_typing.py), in one pytest-xdist worker per core (at most 4);
+#               pytest -m "not slow" leaves out the seconds-long renders
 #   make lock   regenerates requirements.lock (exact versions) from pyproject.toml's ranges
 # Both bootstrap .venv with the exact versions of requirements.lock (gevsim and its
 # extras), and the LLVM runtime that Mitsuba's fast CPU variant needs (apt-get, when
@@ -47,8 +48,12 @@ demo: $(STAMP) llvm
 	$(VENV)/bin/gevsim emulate experiments/street_small.toml --out out/street_small.h5 --cache .gevsim-cache -q
 	$(VENV)/bin/gevsim view out/street_small.h5 --out out/street_small.gif --window-ms 2
 
+# One pytest worker per usable core, at most 4 (each holds numba, Mitsuba and torch: ~1 GB), whole modules per
+# worker (module fixtures are built once); one core: no workers. TEST_WORKERS=0 runs the suite in this process.
+TEST_WORKERS ?= $(shell $(PYTHON) -c "import os; n = min(4, len(os.sched_getaffinity(0))); print(n if n > 1 else 0)")
+
 test: $(STAMP) llvm
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 clean:
 	rm -rf out .gevsim-cache .pytest_cache .hypothesis

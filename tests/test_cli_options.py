@@ -21,9 +21,12 @@ def test_presets_lists_every_preset(capsys):
 
 
 def test_verbose_after_the_subcommand_turns_on_gevsims_loggers_only(monkeypatch):
+    seen, run = [], cli.cmd_presets
+    monkeypatch.setattr(cli, "cmd_presets", lambda args: seen.append(logging.getLogger("gevsim").level) or run(args))
     monkeypatch.setattr(logging.getLogger("gevsim"), "level", logging.NOTSET)
     assert cli.main(["presets", "-v"]) == 0
-    assert logging.getLogger("gevsim").level == logging.DEBUG
+    assert seen == [logging.DEBUG]  # during the command
+    assert logging.getLogger("gevsim").level == logging.NOTSET  # and back after it, for an in-process caller
     assert logging.getLogger().level > logging.DEBUG  # the libraries' loggers stay quiet
 
 

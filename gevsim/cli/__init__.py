@@ -38,8 +38,10 @@ __all__ = ["build_parser", "main", "_progress", "cmd_dataset", "cmd_emulate", "c
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    own = logging.getLogger("gevsim")
+    level = own.level  # restored on return: a caller in the same process (a test, a notebook) keeps its own
     if args.verbose:  # gevsim's own debug messages, not those of every library it imports
-        logging.getLogger("gevsim").setLevel(logging.DEBUG)
+        own.setLevel(logging.DEBUG)
     try:
         return globals()[f"cmd_{args.command}"](args)
     except BrokenPipeError:  # output piped into `head` and the like
@@ -81,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
         where = _failed_path(error.filename, str(exc)) or (f"{args.out}: " if getattr(args, "out", None) else "")
         print(f"gevsim: error: {where}{os.strerror(error.errno).lower()}", file=sys.stderr)
         return 2
+    finally:
+        own.setLevel(level)
 
 
 #: errno values that mean "this disk cannot take the output" rather than a bug.

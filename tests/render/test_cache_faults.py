@@ -13,6 +13,12 @@ from gevsim.render import MitsubaScene, load, override, render_basis
 CARD = Path(__file__).parents[1] / "data" / "card.toml"
 
 
+@pytest.fixture(autouse=True)
+def _render_log_at_warning(caplog):
+    """These tests count warnings: the render's INFO lines stay out whatever earlier tests left set."""
+    caplog.set_level(logging.WARNING, logger="gevsim.render")
+
+
 @pytest.fixture
 def scene(variant):
     return MitsubaScene(override(load(CARD), width=24, height=18, spp=2), variant=variant)
