@@ -38,18 +38,43 @@ ITERATIONS = 4
 
 
 @njit(inline="always")
-def _gauss(z):
-    return exp_scalar(-0.5 * z * z)
+def _gauss_row(z0, dz, scale, out):
+    """out[k] += scale exp(-(z0 + k dz)^2 / 2) for every cell k, with three exponentials in all: from the
+    cell nearest the peak outwards, each value is the last times a ratio, and each ratio the last times
+    exp(-dz^2) (the ratio of a Gaussian's neighbouring samples on an even grid is itself geometric). Every
+    factor is at most 1, so nothing overflows, and a value that underflows is below 1e-308 of the peak. The
+    products carry ~1e-14 relative error over the grid against an exponential per cell (1,400 per pixel,
+    the start's whole cost at 1280x720 before)."""
+    c = 0
+    if dz > 0.0:
+        c = int(min(max(round(-z0 / dz), 0.0), CELLS - 1.0))
+    zc = z0 + c * dz
+    peak = exp_scalar(-0.5 * zc * zc)
+    q = exp_scalar(-dz * dz)
+    out[c] += scale * peak
+    g = peak
+    r = exp_scalar(-zc * dz - 0.5 * dz * dz)
+    for k in range(c + 1, CELLS):
+        g *= r
+        r *= q
+        out[k] += scale * g
+    g = peak
+    r = exp_scalar(zc * dz - 0.5 * dz * dz)
+    for k in range(c - 1, -1, -1):
+        g *= r
+        r *= q
+        out[k] += scale * g
 
 
 @njit(cache=True)
 def _cells(lo, h, theta_on, theta_off, s, nu, drift, r_on, r_off, decay, weight):
     """Per cell, what does not change between passes: the ON and OFF crossing rates, the survival over
     the cell at the leak's drift (decay) and the weight of a reinjection there (gain = g x weight)."""
+    r_on[:] = 0.0
+    r_off[:] = 0.0
+    _gauss_row((theta_on + lo + 0.5 * h) / s, h / s, nu, r_on)  # distance to the ON threshold, rising with u
+    _gauss_row((lo + 0.5 * h - theta_off) / s, h / s, nu, r_off)  # minus the distance to OFF (same Gaussian)
     for k in range(CELLS):
-        u = lo + (k + 0.5) * h
-        r_on[k] = nu * _gauss((theta_on + u) / s)
-        r_off[k] = nu * _gauss((theta_off - u) / s)
         rate = r_on[k] + r_off[k]
         if drift > 0.0:
             x = rate * h / drift
@@ -62,18 +87,70 @@ def _cells(lo, h, theta_on, theta_off, s, nu, drift, r_on, r_off, decay, weight)
 @njit(cache=True)
 def _density(lo, h, decay, weight, mix, p):
     """p (CELLS,) for the reinjection mixture ``mix`` = (weight, mean, sd) x 2; returns its total."""
+    p[:] = 0.0  # first the reinjection law g per cell, then the density in place from the top down
+    for j in range(2):
+        if mix[j, 0] > 0.0:
+            _gauss_row((lo + 0.5 * h - mix[j, 1]) / mix[j, 2], h / mix[j, 2], mix[j, 0] / mix[j, 2], p)
     carry = 0.0
     total = 0.0
     for k in range(CELLS - 1, -1, -1):
-        u = lo + (k + 0.5) * h
-        g = 0.0
-        for j in range(2):
-            if mix[j, 0] > 0.0:
-                g += mix[j, 0] / mix[j, 2] * _gauss((u - mix[j, 1]) / mix[j, 2])
-        carry = carry * decay[k] + g * weight[k]
+        carry = carry * decay[k] + p[k] * weight[k]
         p[k] = carry
         total += carry
     return total
+
+
+#: Pixels per parallel work item of :func:`draw_levels` (its scratch arrays are made once per item).
+_BLOCK = 256
+
+
+@njit(cache=True)
+def _level(theta_on, theta_off, s, nu, rho, drift, reset_sigma, uniform, p, r_on, r_off, decay, weight, mix):
+    """One pixel's level u: its stationary density (p; the rest are scratch of CELLS, and mix (2, 3)) solved to
+    its fixed point with where its events reinject, and inverted at ``uniform``."""
+    lo, hi = -theta_on, theta_off
+    h = (hi - lo) / CELLS
+    s = max(s, 1e-12)
+    if nu <= 0.0 and drift <= 0.0:  # neither noise nor leak: the level stays at the reset point
+        return 0.0
+    r = min(max(rho, 0.0), 1.0)
+    spread = math.sqrt(s * s * (1.0 - r * r) + reset_sigma * reset_sigma) + 1e-12
+    mix[:] = 0.0
+    mix[0, 0], mix[0, 2] = 1.0, math.sqrt(s * s + reset_sigma * reset_sigma) + 1e-12
+    mix[1, 2] = spread
+    _cells(lo, h, theta_on, theta_off, s, nu, drift, r_on, r_off, decay, weight)
+    total = 0.0
+    for _ in range(ITERATIONS):
+        total = _density(lo, h, decay, weight, mix, p)
+        # Where the pixels fire from: each polarity's flux and the mean and variance of the noise level
+        # it crossed (n = theta_on + u for ON, u - theta_off for OFF); their release is at rho times it.
+        f_on = m1_on = m2_on = f_off = m1_off = m2_off = 0.0
+        for k in range(CELLS):
+            u = lo + (k + 0.5) * h
+            n_on, n_off = theta_on + u, u - theta_off
+            a, b = r_on[k] * p[k], r_off[k] * p[k]
+            f_on += a
+            m1_on += a * n_on
+            m2_on += a * n_on * n_on
+            f_off += b
+            m1_off += b * n_off
+            m2_off += b * n_off * n_off
+        if f_on + f_off <= 0.0 or nu <= 0.0:
+            break
+        for j, f, m1, m2 in ((0, f_on, m1_on, m2_on), (1, f_off, m1_off, m2_off)):
+            mean = m1 / f if f > 0 else 0.0
+            var = max(m2 / f - mean * mean, 0.0) if f > 0 else 0.0
+            mix[j, 0] = f / (f_on + f_off)
+            mix[j, 1] = r * mean
+            mix[j, 2] = math.sqrt(spread * spread + r * r * var)
+    target = uniform * total
+    acc = 0.0
+    k = 0
+    while k < CELLS - 1 and acc + p[k] < target:
+        acc += p[k]
+        k += 1
+    frac = (target - acc) / p[k] if p[k] > 0.0 else 0.5
+    return lo + (k + min(max(frac, 0.0), 1.0)) * h
 
 
 @njit(cache=True, parallel=True)
@@ -81,50 +158,10 @@ def draw_levels(theta_on: np.ndarray, theta_off: np.ndarray, sigma: np.ndarray, 
                 drift: np.ndarray, reset_sigma: float, uniform: np.ndarray, out: np.ndarray) -> None:
     """Draw u (out) per pixel by the inverse of its stationary CDF at ``uniform`` (all arrays (P,); ``rho``:
     the noise's correlation over the refractory period)."""
-    for i in prange(out.shape[0]):
-        lo, hi = -theta_on[i], theta_off[i]
-        h = (hi - lo) / CELLS
-        s = max(sigma[i], 1e-12)
-        if nu[i] <= 0.0 and drift[i] <= 0.0:  # neither noise nor leak: the level stays at the reset point
-            out[i] = 0.0
-            continue
-        r = min(max(rho[i], 0.0), 1.0)
-        spread = math.sqrt(s * s * (1.0 - r * r) + reset_sigma * reset_sigma) + 1e-12
-        mix = np.zeros((2, 3))
-        mix[0, 0], mix[0, 2] = 1.0, math.sqrt(s * s + reset_sigma * reset_sigma) + 1e-12
-        mix[1, 2] = spread
-        p = np.empty(CELLS)
-        r_on, r_off, decay, weight = np.empty(CELLS), np.empty(CELLS), np.empty(CELLS), np.empty(CELLS)
-        _cells(lo, h, theta_on[i], theta_off[i], s, nu[i], drift[i], r_on, r_off, decay, weight)
-        total = 0.0
-        for _ in range(ITERATIONS):
-            total = _density(lo, h, decay, weight, mix, p)
-            # Where the pixels fire from: each polarity's flux and the mean and variance of the noise level
-            # it crossed (n = theta_on + u for ON, u - theta_off for OFF); their release is at rho times it.
-            flux = np.zeros(2)
-            m1 = np.zeros(2)
-            m2 = np.zeros(2)
-            for k in range(CELLS):
-                u = lo + (k + 0.5) * h
-                for j in range(2):
-                    n = theta_on[i] + u if j == 0 else u - theta_off[i]
-                    f = (r_on[k] if j == 0 else r_off[k]) * p[k]
-                    flux[j] += f
-                    m1[j] += f * n
-                    m2[j] += f * n * n
-            if flux[0] + flux[1] <= 0.0 or nu[i] <= 0.0:
-                break
-            for j in range(2):
-                mean = m1[j] / flux[j] if flux[j] > 0 else 0.0
-                var = max(m2[j] / flux[j] - mean * mean, 0.0) if flux[j] > 0 else 0.0
-                mix[j, 0] = flux[j] / (flux[0] + flux[1])
-                mix[j, 1] = r * mean
-                mix[j, 2] = math.sqrt(spread * spread + r * r * var)
-        target = uniform[i] * total
-        acc = 0.0
-        k = 0
-        while k < CELLS - 1 and acc + p[k] < target:
-            acc += p[k]
-            k += 1
-        frac = (target - acc) / p[k] if p[k] > 0.0 else 0.5
-        out[i] = lo + (k + min(max(frac, 0.0), 1.0)) * h
+    n = out.shape[0]
+    for b in prange((n + _BLOCK - 1) // _BLOCK):
+        p, r_on, r_off = np.empty(CELLS), np.empty(CELLS), np.empty(CELLS)
+        decay, weight, mix = np.empty(CELLS), np.empty(CELLS), np.empty((2, 3))
+        for i in range(b * _BLOCK, min(n, (b + 1) * _BLOCK)):
+            out[i] = _level(theta_on[i], theta_off[i], sigma[i], nu[i], rho[i], drift[i], reset_sigma, uniform[i],
+                            p, r_on, r_off, decay, weight, mix)
