@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from gevsim.events import _reorder
 from gevsim.events.arbiter import ARBITERS, DELAY_BINS, _serve, delay_quantile_us
 from gevsim.pixel._kernels import normal, pixel_bits, stream_key
 from gevsim.pixel.params import ReadoutParams
@@ -104,11 +105,16 @@ class Latency:
         p = self.params
         jitter_us = p.latency_jitter_s * 1e6
         delay = _delays_us(len(events), first, self.key, p.latency_s * 1e6, jitter_us)
-        moved = events.copy()
-        moved["t"] = np.floor(events["t"] + delay).astype(np.int64)
-        if self.held is not None and len(self.held):
-            moved = np.concatenate([self.held, moved])
-        moved = moved[np.argsort(moved["t"], kind="stable")]
+        held = events[:0] if self.held is None else self.held
+        keys = np.empty(len(held) + len(events), np.int64)
+        _reorder.delayed_keys(held["t"], events["t"], delay, keys)
+        order = _reorder.stable_order(keys)  # np.argsort(keys, kind="stable"), bit for bit
+        moved = np.empty(len(keys), events.dtype)
+        for name in events.dtype.names or ():
+            if name == "t":
+                _reorder.take(keys, keys[:0], order, moved["t"])
+            else:
+                _reorder.take(held[name], events[name], order, moved[name])
         if horizon_us is None:
             self.held = None
             return moved, None
@@ -318,9 +324,10 @@ class _ArbiterState:
 
     def serve(self, readout: Readout, events: np.ndarray, *, horizon: float | None, end_us: int | None) -> np.ndarray:
         p = readout.params
-        r_in = events["y"].astype(np.int64) * self.per_row + events["x"].astype(np.int64) * self.axes
-        if self.axes == 2:
-            r_in += events["axis"].astype(np.int64)
+        no_axis = np.empty(0, np.uint8)
+        r_in = np.empty(len(events), np.int64)
+        _reorder.requesters(events["y"], events["x"], events["axis"] if self.axes == 2 else no_axis, self.per_row,
+                            self.axes, r_in)
         final = horizon is None
         limit_us = math.inf if horizon is None else float(horizon)
         n_out = len(events) + int(self.q[2]) + int(self.burst[2] - self.burst[1])
@@ -334,11 +341,7 @@ class _ArbiterState:
         if final:
             readout.pending = int(np.count_nonzero(self.pend))
         out = np.zeros(m, events.dtype)
-        r = out_r[:m]
-        out["t"] = out_t[:m]
-        out["y"] = r // self.per_row
-        out["x"] = (r % self.per_row) // self.axes
-        if self.axes == 2:
-            out["axis"] = r % 2
+        _reorder.addresses(out_r[:m], out_t[:m], self.per_row, self.axes, out["y"], out["x"],
+                           out["axis"] if self.axes == 2 else no_axis, out["t"])
         out["p"] = out_p[:m].astype(events.dtype["p"])
         return out
