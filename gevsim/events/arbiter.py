@@ -138,72 +138,65 @@ def _serve(t_in, r_in, p_in, horizon_us, end_us, final, service_us, max_delay_us
     i = 0
     m = 0
     limit = end_us if final else min(horizon_us, end_us)
-    now = bus[0]  # the bus and the burst in locals (registers) for the loop, stored back after it
-    b_row, b_pos, b_len = burst[0], burst[1], burst[2]
     while True:
-        if b_len <= b_pos and q[2] == 0:  # idle: the bus waits for the next request
+        if burst[2] <= burst[1] and q[2] == 0:  # idle: the bus waits for the next request
             if i >= n:
                 break
-            now = max(now, np.float64(t_in[i]))
-        while i < n and t_in[i] <= now:
+            bus[0] = max(bus[0], np.float64(t_in[i]))
+        while i < n and t_in[i] <= bus[0]:
             _admit(r_in[i], np.float64(t_in[i]), p_in[i], pend, pend_t, pend_p, busy_until, row_count, row_queued,
                    queue, q, per_row, policy, stats)
             i += 1
-        if now >= limit:
+        if bus[0] >= limit:
             break
-        if b_pos >= b_len and q[2] == 0:  # every arrival so far was unsent: idle until the next one
+        if burst[1] >= burst[2] and q[2] == 0:  # every arrival so far was unsent: idle until the next one
             continue
-        if b_pos >= b_len:  # pick a row (and latch it, in burst modes)
+        if burst[1] >= burst[2]:  # pick a row (and latch it, in burst modes)
             row = _next_row(policy, row_count, row_queued, queue, q, cursor)
             if row < 0:  # cannot happen: every pending request's row is found
                 break
             cursor[0] = row
-            b_row, b_pos, b_len = row, 0, 0
+            burst[0], burst[1], burst[2] = row, 0, 0
             if policy == _ROW_COLUMN:  # one pixel: the column arbiter's next after its last
                 for k in range(1, per_row + 1):
                     c = (col_cursor[row] + k) % per_row
                     if pend[row * per_row + c] == 1:
                         latched[0] = row * per_row + c
                         col_cursor[row] = c
-                        b_len = 1
+                        burst[2] = 1
                         break
             else:
-                want = row_count[row]  # the row's pending requests: every one is latched, so stop at the last
                 for c in range(per_row):
                     if pend[row * per_row + c] == 1:
                         pend[row * per_row + c] = 2  # latched: read in this burst
-                        latched[b_len] = row * per_row + c
-                        b_len += 1
-                        if b_len == want:
-                            break
-        r = latched[b_pos]
-        b_pos += 1
+                        latched[burst[2]] = row * per_row + c
+                        burst[2] += 1
+        r = latched[burst[1]]
+        burst[1] += 1
         row = r // per_row
-        wait = now - pend_t[r]
+        wait = bus[0] - pend_t[r]
         pend[r] = 0
         row_count[row] -= 1
         q[2] -= 1
-        if b_pos >= b_len and policy == _ROW_QUEUE and row_count[row] > 0 and row_queued[row] == 0:
+        if burst[1] >= burst[2] and policy == _ROW_QUEUE and row_count[row] > 0 and row_queued[row] == 0:
             queue[(q[0] + q[1]) % queue.shape[0]] = row  # requests that came during the burst: to the back
             q[1] += 1
             row_queued[row] = 1
         if wait > max_delay_us:
             stats[2] += 1
-            busy_until[r] = now + hold_us  # the pixel is reset without its event being read
+            busy_until[r] = bus[0] + hold_us  # the pixel is reset without its event being read
             continue
         out_r[m] = r
         out_p[m] = pend_p[r]
-        out_t[m] = np.int64(math.floor(now))
+        out_t[m] = np.int64(math.floor(bus[0]))
         m += 1
-        busy_until[r] = now + hold_us
+        busy_until[r] = bus[0] + hold_us
         if wait > 0.0:
             stats[1] += 1
             stats[3] += wait
             stats[4] = max(stats[4], wait)
         hist[_delay_bin(wait)] += 1
-        now += service_us
-    bus[0] = now
-    burst[0], burst[1], burst[2] = b_row, b_pos, b_len
+        bus[0] += service_us
     while i < n:  # arrivals beyond the limit (only at the end): they wait too, one per requester
         _admit(r_in[i], np.float64(t_in[i]), p_in[i], pend, pend_t, pend_p, busy_until, row_count, row_queued,
                queue, q, per_row, policy, stats)
