@@ -1,0 +1,144 @@
+"""Route B of docs/long-steps.md, measured: noise-event rates of a DVS that sees the photoreceptor only every h,
+with and without a Brownian-bridge crossing rule between the samples, against the physics-valid short steps.
+
+A davis346 pixel array on a static log-normal texture (``long_steps.scene``) at a chip illuminance is started
+as a running sensor (``gevsim.validation.measure.start_running``). Three paths then run over the same span from
+copies of that start (independent noise, the same law):
+
+- ``reference``: the driver's sub-steps (``coarsest_step_s``), today's DVS kernel: the rate every route must keep;
+- ``sampled``: the photoreceptor's exact transition over h, today's DVS kernel on those samples alone (the
+  crossings between samples are lost: what the short step exists for);
+- ``bridge``: the same samples; between two samples d0, d1 of the distance to a level that both leave inside
+  the thresholds, a crossing of level b with probability exp(-2 (b - d0)(b - d1) / (D h)) (a Brownian bridge;
+  the leak's drift changes nothing given both ends), D = Var[y(t + h) - y(t)] / h of this very array's
+  samples (the diffusion at lag h). On a crossing the pixel fires and its distance at the step's end is
+  d1 - b minus the reset noise. A sample beyond a threshold fires as today's kernel does.
+
+Rates are events per pixel per second (ON + OFF) with their 95 % intervals from per-pixel counts.
+    .venv/bin/python benchmarks/bridge_crossings.py [--lux 0.1 1 10] [--steps-us 100 250 500 1000] [--span 1.0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import math
+
+import numpy as np
+from long_steps import scene, short_path
+
+from gevsim import _portable as pm
+from gevsim.pixel import load_preset
+from gevsim.pixel.noise import coarsest_step_s
+from gevsim.validation.measure import running_sensor, start_running
+
+
+def rate(counts: np.ndarray, span_s: float) -> tuple[float, float]:
+    """Mean events per pixel per second and its 95 % half-width over pixels."""
+    r = counts / span_s
+    return float(r.mean()), 1.96 * float(r.std(ddof=1)) / math.sqrt(len(r))
+
+
+def per_pixel(events: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    return np.bincount(events["y"].astype(np.int64) * shape[1] + events["x"], minlength=shape[0] * shape[1])
+
+
+def bridge_path(pr, dvs, level: np.ndarray, t0: float, h: float, steps: int, seed: int, *, variant: str,
+                f_out_hz: float) -> np.ndarray:
+    """Per-pixel counts of the bridge rule over ``steps`` steps of ``h`` (see the module docstring). ``variant``:
+    ``lag`` (D from the samples' variance at lag h), ``slow`` (D from the lags h and 2h: the slow part's
+    diffusion, without the fast read noise's constant share), ``smooth`` (``slow``, and each bridge's level
+    moved out by 1.03 sqrt(D / beta), the output pole's smoothing: Fourcaud & Brunel 2002)."""
+    rng = np.random.default_rng(seed)
+    n = level.size
+    on, off = dvs.threshold_on_ln.copy(), dvs.threshold_off_ln.copy()
+    ref, y0 = dvs.ref.copy(), dvs.v_prev.copy()
+    counts = np.zeros(n, np.int64)
+    t = t0 + h * np.arange(1, steps + 1)
+    ys = []
+    for a in range(0, steps, 256):
+        tt = t[a:a + 256]
+        ys.append(pr.process(np.broadcast_to(level, (len(tt),) + level.shape), tt).reshape(len(tt), n))
+    y = np.concatenate(ys).astype(np.float64)
+    lag1 = float(np.var(np.diff(y[1:], axis=0)))
+    lag2 = float(np.var(y[2:] - y[:-2]))
+    diffusion = lag1 / h if variant == "lag" else (lag2 - lag1) / h
+    shift = 1.03 * math.sqrt(diffusion / (2 * math.pi * f_out_hz)) if variant == "smooth" else 0.0
+    reset = float(dvs.params.reset_noise_ln)
+    for k in range(steps):
+        y1 = y[k]
+        leak = dvs.leak_ln_per_s + (dvs.leak_light * pm.exp(y0) if dvs.leak_light.size else 0.0)
+        d0 = y0 - ref
+        d1 = y1 - ref + leak * h
+        while True:  # samples beyond a threshold: today's rule, one threshold at a time
+            up, down = d1 >= on, d1 <= -off
+            if not (up.any() or down.any()):
+                break
+            counts += up | down
+            d1 = np.where(up, d1 - on, np.where(down, d1 + off, d1)) - reset * rng.standard_normal(n) * (up | down)
+            d0 = np.where(up | down, 0.0, d0)
+        b_on, b_off = on + shift, off + shift
+        p_on = np.exp(-2.0 * np.maximum(b_on - d0, 0.0) * np.maximum(b_on - d1, 0.0) / (diffusion * h))
+        p_off = np.exp(-2.0 * np.maximum(b_off + d0, 0.0) * np.maximum(b_off + d1, 0.0) / (diffusion * h))
+        u = rng.random(n)
+        fire_on = u < p_on
+        fire_off = ~fire_on & (u < p_on + p_off)
+        counts += fire_on | fire_off
+        d1 = np.where(fire_on, d1 - on, np.where(fire_off, d1 + off, d1))
+        d1 = d1 - reset * rng.standard_normal(n) * (fire_on | fire_off)
+        ref = y1 - d1
+        y0 = y1
+    return counts
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--lux", type=float, nargs="*", default=[0.1, 1.0, 10.0])
+    ap.add_argument("--steps-us", type=float, nargs="*", default=[100.0, 250.0, 500.0, 1000.0])
+    ap.add_argument("--span", type=float, default=1.0, help="simulated seconds per path")
+    ap.add_argument("--size", default="64x64")
+    ap.add_argument("--ref-step-us", type=float, default=None,
+                    help="the reference's step (default: the driver's, coarsest_step_s at most 20 us)")
+    args = ap.parse_args()
+    w, hgt = (int(x) for x in args.size.split("x"))
+    shape = (hgt, w)
+    preset = load_preset("davis346")
+    print(f"davis346, {w}x{hgt} px, static log-normal texture, {args.span:g} s per path; ev/px/s (95 %)")
+    print("| chip lux | reference step | reference | h | sampled | bridge (lag) | bridge (slow) | bridge (smooth) |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for lux in args.lux:
+        level = scene(shape, preset, lux)
+        step = min(2e-5, coarsest_step_s(preset.photoreceptor, preset.noise, float(level.max())) or 2e-5)
+        step = step if args.ref_step_us is None else args.ref_step_us * 1e-6
+        pr, dvs = running_sensor(preset, shape, 1)
+        t0 = start_running(pr, dvs, level[None], step)
+        frame = 1e-3
+        frames = int(round(args.span / frame))
+        n_sub = math.ceil(frame / step - 1e-9)
+        p2, d2 = copy.deepcopy(pr), copy.deepcopy(dvs)
+        events_before = d2.count.sum()
+        short_path(p2, d2, level, t0 + frame * np.arange(1, frames + 1), t0, n_sub)
+        ref_counts = d2.count - dvs.count
+        assert ref_counts.sum() == d2.count.sum() - events_before
+        r_ref = rate(ref_counts, args.span)
+        for h_us in args.steps_us:
+            h = h_us * 1e-6
+            steps = int(round(args.span / h))
+            p3, d3 = copy.deepcopy(pr), copy.deepcopy(dvs)
+            tt = t0 + h * np.arange(1, steps + 1)
+            before = d3.count.copy()
+            for a in range(0, steps, 256):
+                d3.process(p3.process(np.broadcast_to(level, (len(tt[a:a + 256]),) + shape), tt[a:a + 256]),
+                           tt[a:a + 256])
+            r_s = rate(d3.count - before, args.span)
+            cells = []
+            for variant in ("lag", "slow", "smooth"):
+                r_b = rate(bridge_path(copy.deepcopy(pr), copy.deepcopy(dvs), level, t0, h, steps, seed=int(h_us),
+                                       variant=variant, f_out_hz=preset.photoreceptor.second_pole_hz), args.span)
+                cells.append(f"{r_b[0]:.2f} ± {r_b[1]:.2f} ({r_b[0] / r_ref[0]:.3f})")
+            print(f"| {lux:g} | {step * 1e6:.1f} us | {r_ref[0]:.2f} ± {r_ref[1]:.2f} | {h_us:g} us | "
+                  f"{r_s[0]:.2f} ± {r_s[1]:.2f} | " + " | ".join(cells) + " |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
