@@ -29,8 +29,12 @@ from long_steps import scene, short_path
 
 from gevsim import _portable as pm
 from gevsim.pixel import load_preset
+from gevsim.pixel._cascade import separated_hz
 from gevsim.pixel.noise import coarsest_step_s
 from gevsim.validation.measure import running_sensor, start_running
+
+#: Ways to set the bridge's spread (see :func:`bridge_path`).
+VARIANTS = ("lag", "slow", "smooth", "ou")
 
 
 def rate(counts: np.ndarray, span_s: float) -> tuple[float, float]:
@@ -64,6 +68,12 @@ def bridge_path(pr, dvs, level: np.ndarray, t0: float, h: float, steps: int, see
     lag2 = float(np.var(y[2:] - y[:-2]))
     diffusion = lag1 / h if variant == "lag" else (lag2 - lag1) / h
     shift = 1.03 * math.sqrt(diffusion / (2 * math.pi * f_out_hz)) if variant == "smooth" else 0.0
+    if variant == "ou":  # each pixel's photoreceptor pole: rate alpha, stationary variance at the output
+        itot = np.asarray(pr.settled_current_a, float).reshape(-1)
+        fc = separated_hz(pr.params.cutoff_at(itot), f_out_hz)
+        alpha, beta = 2 * math.pi * fc, 2 * math.pi * f_out_hz
+        var = (pr.shot_q * fc / itot + pr.amp_ln2_hz / fc) * beta / (alpha + beta)
+        scale = var * np.sinh(alpha * h)  # P = exp(-(b - d0)(b - d1) / (var sinh(alpha h))): the OU bridge, chord
     reset = float(dvs.params.reset_noise_ln)
     for k in range(steps):
         y1 = y[k]
@@ -78,8 +88,9 @@ def bridge_path(pr, dvs, level: np.ndarray, t0: float, h: float, steps: int, see
             d1 = np.where(up, d1 - on, np.where(down, d1 + off, d1)) - reset * rng.standard_normal(n) * (up | down)
             d0 = np.where(up | down, 0.0, d0)
         b_on, b_off = on + shift, off + shift
-        p_on = np.exp(-2.0 * np.maximum(b_on - d0, 0.0) * np.maximum(b_on - d1, 0.0) / (diffusion * h))
-        p_off = np.exp(-2.0 * np.maximum(b_off + d0, 0.0) * np.maximum(b_off + d1, 0.0) / (diffusion * h))
+        spread = scale / 2.0 if variant == "ou" else diffusion * h
+        p_on = np.exp(-2.0 * np.maximum(b_on - d0, 0.0) * np.maximum(b_on - d1, 0.0) / spread)
+        p_off = np.exp(-2.0 * np.maximum(b_off + d0, 0.0) * np.maximum(b_off + d1, 0.0) / spread)
         u = rng.random(n)
         fire_on = u < p_on
         fire_off = ~fire_on & (u < p_on + p_off)
@@ -104,8 +115,9 @@ def main() -> None:
     shape = (hgt, w)
     preset = load_preset("davis346")
     print(f"davis346, {w}x{hgt} px, static log-normal texture, {args.span:g} s per path; ev/px/s (95 %)")
-    print("| chip lux | reference step | reference | h | sampled | bridge (lag) | bridge (slow) | bridge (smooth) |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| chip lux | reference step | reference | h | sampled | " + " | ".join(f"bridge ({v})" for v in VARIANTS)
+          + " |")
+    print("| --- " * (5 + len(VARIANTS)) + "|")
     for lux in args.lux:
         level = scene(shape, preset, lux)
         step = min(2e-5, coarsest_step_s(preset.photoreceptor, preset.noise, float(level.max())) or 2e-5)
@@ -132,7 +144,7 @@ def main() -> None:
                            tt[a:a + 256])
             r_s = rate(d3.count - before, args.span)
             cells = []
-            for variant in ("lag", "slow", "smooth"):
+            for variant in VARIANTS:
                 r_b = rate(bridge_path(copy.deepcopy(pr), copy.deepcopy(dvs), level, t0, h, steps, seed=int(h_us),
                                        variant=variant, f_out_hz=preset.photoreceptor.second_pole_hz), args.span)
                 cells.append(f"{r_b[0]:.2f} ± {r_b[1]:.2f} ({r_b[0] / r_ref[0]:.3f})")
