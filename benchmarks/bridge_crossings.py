@@ -25,7 +25,7 @@ import copy
 import math
 
 import numpy as np
-from long_steps import scene, short_path
+from long_steps import scene
 
 from gevsim import _portable as pm
 from gevsim.pixel import load_preset
@@ -47,14 +47,14 @@ def per_pixel(events: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.bincount(events["y"].astype(np.int64) * shape[1] + events["x"], minlength=shape[0] * shape[1])
 
 
-def bridge_path(pr, dvs, level: np.ndarray, t0: float, h: float, steps: int, seed: int, *, variant: str,
+def bridge_path(pr, dvs, light, t0: float, h: float, steps: int, seed: int, *, variant: str,
                 f_out_hz: float) -> np.ndarray:
     """Per-pixel counts of the bridge rule over ``steps`` steps of ``h`` (see the module docstring). ``variant``:
     ``lag`` (D from the samples' variance at lag h), ``slow`` (D from the lags h and 2h: the slow part's
     diffusion, without the fast read noise's constant share), ``smooth`` (``slow``, and each bridge's level
     moved out by 1.03 sqrt(D / beta), the output pole's smoothing: Fourcaud & Brunel 2002)."""
     rng = np.random.default_rng(seed)
-    n = level.size
+    n = dvs.threshold_on_ln.size
     on, off = dvs.threshold_on_ln.copy(), dvs.threshold_off_ln.copy()
     ref, y0 = dvs.ref.copy(), dvs.v_prev.copy()
     counts = np.zeros(n, np.int64)
@@ -62,7 +62,7 @@ def bridge_path(pr, dvs, level: np.ndarray, t0: float, h: float, steps: int, see
     ys = []
     for a in range(0, steps, 256):
         tt = t[a:a + 256]
-        ys.append(pr.process(np.broadcast_to(level, (len(tt),) + level.shape), tt).reshape(len(tt), n))
+        ys.append(pr.process(light(tt, h), tt).reshape(len(tt), n))
     y = np.concatenate(ys).astype(np.float64)
     lag1 = float(np.var(np.diff(y[1:], axis=0)))
     lag2 = float(np.var(y[2:] - y[:-2]))
@@ -102,19 +102,42 @@ def bridge_path(pr, dvs, level: np.ndarray, t0: float, h: float, steps: int, see
     return counts
 
 
+def lighting(level: np.ndarray, t0: float, sine_ln: float, sine_hz: float):
+    """light(t, dt): the photocurrent (len(t), H, W) held over each step of ``dt`` ending at t, its value at the
+    step's middle: ``level`` times exp(sine_ln sin(2 pi sine_hz (t - t0)))."""
+    def light(t: np.ndarray, dt: float) -> np.ndarray:
+        if sine_ln == 0.0:
+            return np.broadcast_to(level, (len(t),) + level.shape)
+        gain = pm.exp(sine_ln * np.sin(2 * math.pi * sine_hz * (t - 0.5 * dt - t0)))
+        return level[None] * gain[:, None, None]
+    return light
+
+
+def reference_path(pr, dvs, light, t0: float, span_s: float, step: float) -> None:
+    """The driver's path: the chain at ``step`` over (t0, t0 + span_s], light held per step."""
+    t = t0 + step * np.arange(1, int(round(span_s / step)) + 1)
+    chunk = max(1, 2_000_000 // dvs.threshold_on_ln.size)
+    for a in range(0, len(t), chunk):
+        tt = t[a:a + chunk]
+        dvs.process(pr.process(light(tt, step), tt), tt)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lux", type=float, nargs="*", default=[0.1, 1.0, 10.0])
     ap.add_argument("--steps-us", type=float, nargs="*", default=[100.0, 250.0, 500.0, 1000.0])
     ap.add_argument("--span", type=float, default=1.0, help="simulated seconds per path")
     ap.add_argument("--size", default="64x64")
+    ap.add_argument("--sine-ln", type=float, default=0.0, help="the light's log modulation (0: static)")
+    ap.add_argument("--sine-hz", type=float, default=5.0)
     ap.add_argument("--ref-step-us", type=float, default=None,
                     help="the reference's step (default: the driver's, coarsest_step_s at most 20 us)")
     args = ap.parse_args()
     w, hgt = (int(x) for x in args.size.split("x"))
     shape = (hgt, w)
     preset = load_preset("davis346")
-    print(f"davis346, {w}x{hgt} px, static log-normal texture, {args.span:g} s per path; ev/px/s (95 %)")
+    light_text = (f"x exp({args.sine_ln:g} sin(2 pi {args.sine_hz:g} Hz t))" if args.sine_ln else "static")
+    print(f"davis346, {w}x{hgt} px, log-normal texture, {light_text}, {args.span:g} s per path; ev/px/s (95 %)")
     print("| chip lux | reference step | reference | h | sampled | " + " | ".join(f"bridge ({v})" for v in VARIANTS)
           + " |")
     print("| --- " * (5 + len(VARIANTS)) + "|")
@@ -124,14 +147,10 @@ def main() -> None:
         step = step if args.ref_step_us is None else args.ref_step_us * 1e-6
         pr, dvs = running_sensor(preset, shape, 1)
         t0 = start_running(pr, dvs, level[None], step)
-        frame = 1e-3
-        frames = int(round(args.span / frame))
-        n_sub = math.ceil(frame / step - 1e-9)
+        light = lighting(level, t0, args.sine_ln, args.sine_hz)
         p2, d2 = copy.deepcopy(pr), copy.deepcopy(dvs)
-        events_before = d2.count.sum()
-        short_path(p2, d2, level, t0 + frame * np.arange(1, frames + 1), t0, n_sub)
+        reference_path(p2, d2, light, t0, args.span, step)
         ref_counts = d2.count - dvs.count
-        assert ref_counts.sum() == d2.count.sum() - events_before
         r_ref = rate(ref_counts, args.span)
         for h_us in args.steps_us:
             h = h_us * 1e-6
@@ -140,12 +159,11 @@ def main() -> None:
             tt = t0 + h * np.arange(1, steps + 1)
             before = d3.count.copy()
             for a in range(0, steps, 256):
-                d3.process(p3.process(np.broadcast_to(level, (len(tt[a:a + 256]),) + shape), tt[a:a + 256]),
-                           tt[a:a + 256])
+                d3.process(p3.process(light(tt[a:a + 256], h), tt[a:a + 256]), tt[a:a + 256])
             r_s = rate(d3.count - before, args.span)
             cells = []
             for variant in VARIANTS:
-                r_b = rate(bridge_path(copy.deepcopy(pr), copy.deepcopy(dvs), level, t0, h, steps, seed=int(h_us),
+                r_b = rate(bridge_path(copy.deepcopy(pr), copy.deepcopy(dvs), light, t0, h, steps, seed=int(h_us),
                                        variant=variant, f_out_hz=preset.photoreceptor.second_pole_hz), args.span)
                 cells.append(f"{r_b[0]:.2f} ± {r_b[1]:.2f} ({r_b[0] / r_ref[0]:.3f})")
             print(f"| {lux:g} | {step * 1e6:.1f} us | {r_ref[0]:.2f} ± {r_ref[1]:.2f} | {h_us:g} us | "
