@@ -51,7 +51,8 @@ demo: $(STAMP) llvm
 # One pytest worker per usable core, at most 4 (each holds numba, Mitsuba and torch: ~1 GB), whole modules per
 # worker (module fixtures are built once), in collection order (tests/conftest.py puts the longest modules first;
 # xdist would otherwise start with the modules of most tests); one core: no workers. TEST_WORKERS=0: in-process.
-TEST_WORKERS ?= $(shell $(PYTHON) -c "import os; n = min(4, len(os.sched_getaffinity(0))); print(n if n > 1 else 0)")
+TEST_WORKERS ?= $(shell $(PYTHON) -c "import os; c = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') \
+                  else os.cpu_count() or 1; n = min(4, c); print(n if n > 1 else 0)")
 
 test: $(STAMP) llvm
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
