@@ -40,6 +40,17 @@ def _describe(obj, units: str | None, meaning: str | None) -> None:
         obj.attrs["meaning"] = str(meaning)
 
 
+def _settle(*datasets: h5py.Dataset) -> None:
+    """Write the datasets' cached chunks to the file now (HDF5's H5Dflush). A chunk gets its place in the file
+    when it leaves the dataset's chunk cache, which is when the dataset closes unless it is flushed first, and a
+    dataset closes when its last handle is freed: a handle held a moment longer (a thread that samples the
+    stack, as Dask's profiler does) changed the order of the frames' chunks in the file (issue 37:
+    ``benchmarks/layout_determinism.py``). Flushed here, the layout follows the writes alone."""
+    for ds in datasets:
+        if ds.chunks is not None:
+            ds.flush()
+
+
 class _Stream:
     """One event stream: its datasets, and the caller's view (events accepted, last time, ms_to_idx
     entries issued) and the writer's (events written, a partial chunk waiting for more)."""

@@ -69,6 +69,7 @@ from gevsim.io._hdf5_stream import (  # noqa: F401 (re-exported: gevsim.io.hdf5.
     T_OFFSET_ATTRS,
     _describe,
     _filters,
+    _settle,
     _Stream,
 )
 from gevsim.io._worker import _Worker
@@ -265,6 +266,7 @@ class EventWriter:
         images.resize((n + 1, *image.shape))
         t.resize((n + 1,))
         images[n], t[n] = image, int(t_us)
+        _settle(images, t)
 
     def write_array(self, path_in_file: str, array: np.ndarray, attrs: dict | None = None, *,
                     units: str | None = None, meaning: str | None = None) -> None:
@@ -279,7 +281,7 @@ class EventWriter:
         array = np.asarray(array)
         ensure_room(self.path, array.nbytes)
         opts = _filters(self._filters, array.dtype) if array.ndim and array.size else {}
-        self._file.create_dataset(path_in_file, data=array, **opts)
+        _settle(self._file.create_dataset(path_in_file, data=array, **opts))
         _describe(self._file[path_in_file], units, meaning)
         self.set_attrs(path_in_file, **(attrs or {}))
 

@@ -279,3 +279,26 @@ def test_a_plain_h5py_handle_and_a_reader_are_open_at_once(good):
         assert r.width == f.attrs["width"]
     with h5py.File(good, "r", locking=False) as f, EventReader(good) as r:  # and a handle without locking
         assert r.height == f.attrs["height"]
+
+
+def test_a_handle_held_past_a_write_does_not_move_the_chunks(tmp_path):
+    """Where a frame's or an array's chunks go in the file follows the writes alone. A dataset handle that
+    outlives its write (a thread sampling the stack holds the frame that owns it, as Dask's profiler does)
+    once kept the chunk in HDF5's cache until it was freed, and the file came out in another byte order
+    (issue 37, ``benchmarks/layout_determinism.py``). Two files, with and without such handles, are equal."""
+    def write(path, hold):
+        held = []
+        writer = EventWriter(path, width=8, height=6, config_toml="", seed=0)
+        for k in range(4):
+            writer.append_frame("depth", np.full((6, 8), k, np.float32), 10 * k + 1)
+            if hold:
+                held.append(writer._file["frames/depth/images"])
+            writer.append_frame("flow", np.full((6, 8, 2), -k, np.float32), 10 * k + 1)
+        writer.write_array("thresholds/on", np.linspace(0.1, 0.3, 48).reshape(6, 8))
+        if hold:
+            held.append(writer._file["thresholds/on"])
+        writer.write_array("thresholds/off", np.linspace(0.2, 0.4, 48).reshape(6, 8))
+        writer.close(40)
+        return path.read_bytes()
+
+    assert write(tmp_path / "held.h5", True) == write(tmp_path / "freed.h5", False)
