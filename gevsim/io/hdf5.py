@@ -281,8 +281,9 @@ class EventWriter:
         array = np.asarray(array)
         ensure_room(self.path, array.nbytes)
         opts = _filters(self._filters, array.dtype) if array.ndim and array.size else {}
-        _settle(self._file.create_dataset(path_in_file, data=array, **opts))
-        _describe(self._file[path_in_file], units, meaning)
+        dataset = self._file.create_dataset(path_in_file, data=array, **opts)
+        _settle(dataset)
+        _describe(dataset, units, meaning)
         self.set_attrs(path_in_file, **(attrs or {}))
 
     def set_attrs(self, group_path: str, **attrs: object) -> None:
