@@ -25,6 +25,7 @@ import copy
 import math
 
 import numpy as np
+import _rice_bridge
 from long_steps import scene
 
 from gevsim import _portable as pm
@@ -34,7 +35,7 @@ from gevsim.pixel.noise import coarsest_step_s
 from gevsim.validation.measure import running_sensor, start_running
 
 #: Ways to set the bridge's spread (see :func:`bridge_path`).
-VARIANTS = ("lag", "slow", "smooth", "ou")
+VARIANTS = ("lag", "slow", "smooth", "ou", "rice")
 
 
 def rate(counts: np.ndarray, span_s: float) -> tuple[float, float]:
@@ -48,7 +49,7 @@ def per_pixel(events: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 
 def bridge_path(pr, dvs, light, t0: float, h: float, steps: int, seed: int, *, variant: str,
-                f_out_hz: float) -> np.ndarray:
+                f_out_hz: float, light_mean=None) -> np.ndarray:
     """Per-pixel counts of the bridge rule over ``steps`` steps of ``h`` (see the module docstring). ``variant``:
     ``lag`` (D from the samples' variance at lag h), ``slow`` (D from the lags h and 2h: the slow part's
     diffusion, without the fast read noise's constant share), ``smooth`` (``slow``, and each bridge's level
@@ -74,6 +75,17 @@ def bridge_path(pr, dvs, light, t0: float, h: float, steps: int, seed: int, *, v
         alpha, beta = 2 * math.pi * fc, 2 * math.pi * f_out_hz
         var = (pr.shot_q * fc / itot + pr.amp_ln2_hz / fc) * beta / (alpha + beta)
         scale = var * np.sinh(alpha * h)  # P = exp(-(b - d0)(b - d1) / (var sinh(alpha h))): the OU bridge, chord
+    if variant == "rice":  # Rice's formula on the Gaussian bridge of the output noise (benchmarks/_rice_bridge.py)
+        itot = np.asarray(pr.settled_current_a, float).reshape(-1)
+        beta = 2 * math.pi * f_out_hz
+        a_s = 2 * math.pi * separated_hz(pr.params.cutoff_at(itot), f_out_hz)
+        v_s = (pr.shot_q * a_s / (2 * math.pi) / itot + pr.amp_ln2_hz * 2 * math.pi / a_s) * beta / (a_s + beta)
+        a_r = 2 * math.pi * float(separated_hz(pr.fn_hz[0], f_out_hz))
+        v_r = float(pr.fn_var[0]) * beta / (a_r + beta)
+        nodes, weights = _rice_bridge.gauss_legendre(16)
+        p_on, p_off = np.empty(n), np.empty(n)
+        mu = np.asarray(pr.settled_ln, float).reshape(-1)
+        mean = light_mean if light_mean is not None else (lambda tt: mu)
     reset = float(dvs.params.reset_noise_ln)
     for k in range(steps):
         y1 = y[k]
@@ -87,6 +99,19 @@ def bridge_path(pr, dvs, light, t0: float, h: float, steps: int, seed: int, *, v
             counts += up | down
             d1 = np.where(up, d1 - on, np.where(down, d1 + off, d1)) - reset * rng.standard_normal(n) * (up | down)
             d0 = np.where(up | down, 0.0, d0)
+        if variant == "rice":
+            x0, x1 = y0 - mean(t[k] - h), y1 - mean(t[k])
+            _rice_bridge.crossing_probability(x0, x1, on - d0, on - d1, off + d0, off + d1, h, v_s, a_s, v_r, a_r,
+                                              beta, nodes, weights, p_on, p_off)
+            u = rng.random(n)
+            fire_on = u < p_on
+            fire_off = ~fire_on & (u < p_on + p_off)
+            counts += fire_on | fire_off
+            d1 = np.where(fire_on, d1 - on, np.where(fire_off, d1 + off, d1))
+            d1 = d1 - reset * rng.standard_normal(n) * (fire_on | fire_off)
+            ref = y1 - d1
+            y0 = y1
+            continue
         b_on, b_off = on + shift, off + shift
         spread = scale / 2.0 if variant == "ou" else diffusion * h
         p_on = np.exp(-2.0 * np.maximum(b_on - d0, 0.0) * np.maximum(b_on - d1, 0.0) / spread)
@@ -113,6 +138,21 @@ def lighting(level: np.ndarray, t0: float, sine_ln: float, sine_hz: float):
     return light
 
 
+def noise_free(pr, t0: float, sine_ln: float, sine_hz: float):
+    """mean(t): each pixel's noise-free output at t (ln), the settled level plus the sinusoid through the
+    photoreceptor's pole at its settled light and the output pole (steady state); None for a static light."""
+    if sine_ln == 0.0:
+        return None
+    mu = np.asarray(pr.settled_ln, float).reshape(-1)
+    f_out = pr.params.second_pole_hz
+    fc = separated_hz(pr.params.cutoff_at(np.asarray(pr.settled_current_a, float).reshape(-1)), f_out)
+    gain = 1.0 / ((1.0 + 1j * sine_hz / fc) * (1.0 + 1j * sine_hz / f_out))
+
+    def mean(t: float) -> np.ndarray:
+        return mu + sine_ln * np.imag(gain * np.exp(1j * 2 * math.pi * sine_hz * (t - t0)))
+    return mean
+
+
 def reference_path(pr, dvs, light, t0: float, span_s: float, step: float) -> None:
     """The driver's path: the chain at ``step`` over (t0, t0 + span_s], light held per step."""
     t = t0 + step * np.arange(1, int(round(span_s / step)) + 1)
@@ -128,6 +168,7 @@ def main() -> None:
     ap.add_argument("--steps-us", type=float, nargs="*", default=[100.0, 250.0, 500.0, 1000.0])
     ap.add_argument("--span", type=float, default=1.0, help="simulated seconds per path")
     ap.add_argument("--size", default="64x64")
+    ap.add_argument("--variants", nargs="*", default=list(VARIANTS), choices=VARIANTS)
     ap.add_argument("--sine-ln", type=float, default=0.0, help="the light's log modulation (0: static)")
     ap.add_argument("--sine-hz", type=float, default=5.0)
     ap.add_argument("--ref-step-us", type=float, default=None,
@@ -138,9 +179,9 @@ def main() -> None:
     preset = load_preset("davis346")
     light_text = (f"x exp({args.sine_ln:g} sin(2 pi {args.sine_hz:g} Hz t))" if args.sine_ln else "static")
     print(f"davis346, {w}x{hgt} px, log-normal texture, {light_text}, {args.span:g} s per path; ev/px/s (95 %)")
-    print("| chip lux | reference step | reference | h | sampled | " + " | ".join(f"bridge ({v})" for v in VARIANTS)
+    print("| chip lux | reference step | reference | h | sampled | " + " | ".join(f"bridge ({v})" for v in args.variants)
           + " |")
-    print("| --- " * (5 + len(VARIANTS)) + "|")
+    print("| --- " * (5 + len(args.variants)) + "|")
     for lux in args.lux:
         level = scene(shape, preset, lux)
         step = min(2e-5, coarsest_step_s(preset.photoreceptor, preset.noise, float(level.max())) or 2e-5)
@@ -162,9 +203,10 @@ def main() -> None:
                 d3.process(p3.process(light(tt[a:a + 256], h), tt[a:a + 256]), tt[a:a + 256])
             r_s = rate(d3.count - before, args.span)
             cells = []
-            for variant in VARIANTS:
+            for variant in args.variants:
                 r_b = rate(bridge_path(copy.deepcopy(pr), copy.deepcopy(dvs), light, t0, h, steps, seed=int(h_us),
-                                       variant=variant, f_out_hz=preset.photoreceptor.second_pole_hz), args.span)
+                                       variant=variant, f_out_hz=preset.photoreceptor.second_pole_hz,
+                                       light_mean=noise_free(pr, t0, args.sine_ln, args.sine_hz)), args.span)
                 cells.append(f"{r_b[0]:.2f} ± {r_b[1]:.2f} ({r_b[0] / r_ref[0]:.3f})")
             print(f"| {lux:g} | {step * 1e6:.1f} us | {r_ref[0]:.2f} ± {r_ref[1]:.2f} | {h_us:g} us | "
                   f"{r_s[0]:.2f} ± {r_s[1]:.2f} | " + " | ".join(cells) + " |", flush=True)
