@@ -23,16 +23,20 @@ from __future__ import annotations
 import argparse
 import copy
 import math
+import time
 
 import numpy as np
-import _rice_bridge
 from long_steps import scene
 
 from gevsim import _portable as pm
+from gevsim.events.bridge import crossings
 from gevsim.pixel import load_preset
 from gevsim.pixel._cascade import separated_hz
 from gevsim.pixel.noise import coarsest_step_s
 from gevsim.validation.measure import running_sensor, start_running
+
+#: Seconds in the rice rule and pixel-steps it saw (its cost).
+RULE_S = [0.0, 0]
 
 #: Ways to set the bridge's spread (see :func:`bridge_path`).
 VARIANTS = ("lag", "slow", "smooth", "ou", "rice")
@@ -75,15 +79,9 @@ def bridge_path(pr, dvs, light, t0: float, h: float, steps: int, seed: int, *, v
         alpha, beta = 2 * math.pi * fc, 2 * math.pi * f_out_hz
         var = (pr.shot_q * fc / itot + pr.amp_ln2_hz / fc) * beta / (alpha + beta)
         scale = var * np.sinh(alpha * h)  # P = exp(-(b - d0)(b - d1) / (var sinh(alpha h))): the OU bridge, chord
-    if variant == "rice":  # Rice's formula on the Gaussian bridge of the output noise (benchmarks/_rice_bridge.py)
-        itot = np.asarray(pr.settled_current_a, float).reshape(-1)
+    if variant == "rice":  # Rice's formula on the Gaussian bridge of the output noise (gevsim.events.bridge)
+        var_k, rate_k = pr.noise_components()
         beta = 2 * math.pi * f_out_hz
-        a_s = 2 * math.pi * separated_hz(pr.params.cutoff_at(itot), f_out_hz)
-        v_s = (pr.shot_q * a_s / (2 * math.pi) / itot + pr.amp_ln2_hz * 2 * math.pi / a_s) * beta / (a_s + beta)
-        a_r = 2 * math.pi * float(separated_hz(pr.fn_hz[0], f_out_hz))
-        v_r = float(pr.fn_var[0]) * beta / (a_r + beta)
-        nodes, weights = _rice_bridge.gauss_legendre(16)
-        p_on, p_off = np.empty(n), np.empty(n)
         mu = np.asarray(pr.settled_ln, float).reshape(-1)
         mean = light_mean if light_mean is not None else (lambda tt: mu)
     reset = float(dvs.params.reset_noise_ln)
@@ -101,8 +99,10 @@ def bridge_path(pr, dvs, light, t0: float, h: float, steps: int, seed: int, *, v
             d0 = np.where(up | down, 0.0, d0)
         if variant == "rice":
             x0, x1 = y0 - mean(t[k] - h), y1 - mean(t[k])
-            _rice_bridge.crossing_probability(x0, x1, on - d0, on - d1, off + d0, off + d1, h, v_s, a_s, v_r, a_r,
-                                              beta, nodes, weights, p_on, p_off)
+            tick = time.perf_counter()
+            p_on, p_off, _, _ = crossings(x0, x1, (on - d0, on - d1), (off + d0, off + d1), h, var_k, rate_k, beta)
+            RULE_S[0] += time.perf_counter() - tick
+            RULE_S[1] += n
             u = rng.random(n)
             fire_on = u < p_on
             fire_off = ~fire_on & (u < p_on + p_off)
@@ -208,6 +208,9 @@ def main() -> None:
                                        variant=variant, f_out_hz=preset.photoreceptor.second_pole_hz,
                                        light_mean=noise_free(pr, t0, args.sine_ln, args.sine_hz)), args.span)
                 cells.append(f"{r_b[0]:.2f} ± {r_b[1]:.2f} ({r_b[0] / r_ref[0]:.3f})")
+                if variant == "rice" and RULE_S[1]:
+                    cells[-1] += f" [{RULE_S[0] / RULE_S[1] * 1e9:.0f} ns/px-step]"
+                    RULE_S[:] = [0.0, 0]
             print(f"| {lux:g} | {step * 1e6:.1f} us | {r_ref[0]:.2f} ± {r_ref[1]:.2f} | {h_us:g} us | "
                   f"{r_s[0]:.2f} ± {r_s[1]:.2f} | " + " | ".join(cells) + " |", flush=True)
 

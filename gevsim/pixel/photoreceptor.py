@@ -183,11 +183,34 @@ class Photoreceptor:
             s = math.sqrt(self.fn_var[0])
             v2 += beta / (a_r + beta) * fn[0] + s * math.sqrt(a_r * beta) / (a_r + beta) * self.start_z[2]
 
+    def noise_components(self, total_a: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """The output's noise at total photocurrent ``total_a`` (default: the settled one) as K white noises each
+        through its own pole and the output pole: (var, rate), each (K, pixels), var the component's variance at
+        the output (ln^2) and rate its own pole (rad/s, moved off the output pole as the kernel moves it). The
+        shot and amplifier noise after the photoreceptor's pole, then the read noise after its own. The 1/f
+        poles (one pole each, no output pole) are not among them. None without an output pole."""
+        p = self.params
+        if p.second_pole_hz is None:
+            return None
+        itot = np.asarray(self.settled_current_a if total_a is None else total_a, float).reshape(-1)
+        beta = 2.0 * math.pi * p.second_pole_hz
+        var, rate = [], []
+        if self.shot_q > 0 or self.amp_ln2_hz > 0:
+            fc = separated_hz(p.cutoff_at(itot), p.second_pole_hz)
+            alpha = 2.0 * math.pi * fc
+            var.append((self.shot_q * fc / itot + self.amp_ln2_hz / fc) * beta / (alpha + beta))
+            rate.append(alpha)
+        if self.n_read:
+            alpha_r = 2.0 * math.pi * float(separated_hz(self.fn_hz[0], p.second_pole_hz))
+            var.append(np.full(itot.shape, self.fn_var[0] * beta / (alpha_r + beta)))
+            rate.append(np.full(itot.shape, alpha_r))
+        return np.array(var).reshape(-1, itot.size), np.array(rate).reshape(-1, itot.size)
+
     def output_noise_law(self, lag_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The output noise's standard deviation (ln), Rice frequency (Hz) and correlation over ``lag_s`` per
         pixel, at the settled photocurrent: the level crossing rate of a level w is nu exp(-w^2 / 2 sigma^2)
-        (Rice 1944). Each white noise through two poles (rates alpha, beta) has variance var beta / (alpha +
-        beta) at the output, derivative variance var alpha beta^2 / (alpha + beta) and correlation
+        (Rice 1944). Each white noise through two poles (rates alpha, beta; :meth:`noise_components`) has
+        variance v at the output, derivative variance v alpha beta and correlation
         (beta e^(-alpha tau) - alpha e^(-beta tau)) / (beta - alpha), so nu = (1 / 2 pi) sqrt(sum of
         derivative variances / sum of variances). The 1/f poles' OU terms add to sigma (and the correlation)
         only. None without an output pole (a single pole's path has no crossing rate) or before :meth:`settle`."""
@@ -195,26 +218,20 @@ class Photoreceptor:
         if p.second_pole_hz is None or getattr(self, "settled_current_a", None) is None:
             return None
         beta = 2.0 * math.pi * p.second_pole_hz
-        itot = self.settled_current_a
-        var, dvar, cov = np.zeros_like(itot), np.zeros_like(itot), np.zeros_like(itot)
-
-        def two_poles(x, alpha):
-            nonlocal var, dvar, cov
-            var = var + x * beta / (alpha + beta)
-            dvar = dvar + x * alpha * beta * beta / (alpha + beta)
+        shape = np.shape(self.settled_current_a)
+        parts = self.noise_components()
+        assert parts is not None
+        var = np.zeros(shape)
+        dvar, cov = np.zeros(shape), np.zeros(shape)
+        for v, alpha in zip(*parts, strict=True):
+            v, alpha = v.reshape(shape), alpha.reshape(shape)
+            var = var + v
+            dvar = dvar + v * alpha * beta
             decay_a, decay_b = pm.exp(np.asarray(-alpha * lag_s, float)), pm.exp(np.asarray(-beta * lag_s, float))
-            rho = (beta * decay_a - alpha * decay_b) / (beta - alpha)
-            cov = cov + x * beta / (alpha + beta) * rho
-
-        if self.shot_q > 0 or self.amp_ln2_hz > 0:
-            fc = separated_hz(p.cutoff_at(itot), p.second_pole_hz)
-            two_poles(self.shot_q * fc / itot + self.amp_ln2_hz / fc, 2.0 * math.pi * fc)
-        for k in range(len(self.fn_hz)):
-            if k < self.n_read:  # the read noise: its own pole, then the output pole
-                two_poles(self.fn_var[0], 2.0 * math.pi * float(separated_hz(self.fn_hz[0], p.second_pole_hz)))
-            else:
-                var = var + self.fn_var[k]
-                cov = cov + self.fn_var[k] * pm.exp(np.asarray(-2.0 * math.pi * self.fn_hz[k] * lag_s, float))
+            cov = cov + v * (beta * decay_a - alpha * decay_b) / (beta - alpha)
+        for k in range(self.n_read, len(self.fn_hz)):
+            var = var + self.fn_var[k]
+            cov = cov + self.fn_var[k] * pm.exp(np.asarray(-2.0 * math.pi * self.fn_hz[k] * lag_s, float))
         safe = np.maximum(var, 1e-300)
         return np.sqrt(var), np.sqrt(dvar / safe) / (2.0 * math.pi), cov / safe
 
