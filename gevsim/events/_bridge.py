@@ -65,108 +65,123 @@ def _exp(x):
 
 
 @njit(inline="always")
-def _upper_tail(u):
-    """Phi(-u) for u >= 0 (A&S 7.1.26 on erfc(u / sqrt 2): absolute error < 1.5e-7 / 2)."""
-    t = 1.0 / (1.0 + 0.3275911 * u * 0.7071067811865476)
-    poly = t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429))))
-    return 0.5 * poly * _exp(-0.5 * u * u)
-
-
-@njit(inline="always")
 def _mean_excess(mu, s):
-    """E[(Y)^+] for Y ~ N(mu, s^2), s > 0."""
+    """E[(Y)^+] for Y ~ N(mu, s^2), s > 0: s (u Phi(u) + phi(u)), u = mu / s, Phi by A&S 7.1.26 on
+    erfc(|u| / sqrt 2) (absolute error < 1e-7), one exponential for both; branch-free."""
     u = mu / s
-    pdf = _exp(-0.5 * u * u) * _INV_SQ2PI
-    cdf = 1.0 - _upper_tail(u) if u >= 0.0 else _upper_tail(-u)
-    return mu * cdf + s * pdf
+    a = abs(u)
+    e = _exp(-0.5 * a * a)
+    t = 1.0 / (1.0 + 0.3275911 * 0.7071067811865476 * a)
+    tail = 0.5 * e * t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027
+                                                                                       + t * 1.061405429))))
+    cdf = tail if u < 0.0 else 1.0 - tail
+    return s * (u * cdf + e * _INV_SQ2PI)
 
 
 @njit(inline="always")
-def _covariances(var, rate, p, b, h, eb, ea, last, c, cp):
-    """C and C' of pixel p at 0, h and the nodes: c[0] = C(0), c[1 + q] = C(XI[q] h), c[NODES + 1] = C(h);
-    cp likewise (cp[0] = -C''(0), the derivative's variance). eb: e^(-b tau) at the same points; ea[k]:
-    e^(-a_k tau), recomputed only when component k's rate differs from ``last[k]`` (the pixel before's)."""
+def _covariances(lv, la, m, b, h, eb, c, cp):
+    """C and C' of the m lanes (their components' variances lv[k, i] and rates la[k, i]) at 0, h and the nodes:
+    c[0, i] = C(0), c[1 + q, i] = C(XI[q] h), c[NODES + 1, i] = C(h); cp likewise, but cp[0, i] = -C''(0) (the
+    derivative's variance). eb: e^(-b tau) at the same points. Lane-wise loops (vectorised)."""
     n = c.shape[0]
     for j in range(n):
-        c[j] = 0.0
-        cp[j] = 0.0
-    for k in range(var.shape[0]):
-        v = var[k, p]
-        a = rate[k, p]
-        if v <= 0.0:
-            continue
-        if a != last[k]:
-            for j in range(1, n):
-                ea[k, j] = _exp(-a * (XI[j - 1] * h if j < n - 1 else h))
-            last[k] = a
-        g = 1.0 / (b - a)
-        cp[0] += v * a * b
-        c[0] += v
+        for i in range(m):
+            c[j, i] = 0.0
+            cp[j, i] = 0.0
+    for k in range(lv.shape[0]):
+        for i in range(m):
+            c[0, i] += lv[k, i]
+            cp[0, i] += lv[k, i] * la[k, i] * b
         for j in range(1, n):
-            c[j] += v * (b * ea[k, j] - a * eb[j]) * g
-            cp[j] += v * a * b * (eb[j] - ea[k, j]) * g
+            tau = XI[j - 1] * h if j < n - 1 else h
+            ebj = eb[j]
+            for i in range(m):
+                a = la[k, i]
+                g = lv[k, i] / (b - a)
+                ea = _exp(-a * tau)
+                c[j, i] += g * (b * ea - a * ebj)
+                cp[j, i] += g * a * b * (ebj - ea)
 
 
 @njit(inline="always")
-def _side(x0, x1, g0, g1, h, c, cp, share):
-    """Expected up-crossings of B(t) = x0 + g0 + (x1 + g1 - x0 - g0) t / h over (0, h) given x(0) = x0 and
-    x(h) = x1 (g0, g1 > 0), from the covariances of :func:`_covariances`; share[q] receives each node's part."""
-    s2 = c[0]
-    r = c[NODES + 1]
-    lam = cp[0]
-    det = s2 * s2 - r * r
-    b0 = x0 + g0
-    slope = (x1 + g1 - b0) / h
-    total = 0.0
+def _moments(c, cp, m, inv_det, mom):
+    """The bridge's moments at each node for the m lanes, for any samples: mom[0..1, q, i] = A1, A2 (the mean),
+    mom[2] = 1 / sqrt(v), mom[3..4] = D1, D2 (the derivative's mean), mom[5] = c / v, mom[6] = s (the
+    derivative's conditional deviation). inv_det: scratch (m,)."""
+    for i in range(m):
+        inv_det[i] = 1.0 / (c[0, i] * c[0, i] - c[NODES + 1, i] * c[NODES + 1, i])
     for q in range(NODES):
-        share[q] = 0.0
-        k1, k1p = c[1 + q], cp[1 + q]
-        k2, k2p = c[NODES - q], -cp[NODES - q]  # C(h - t) and d/dt C(h - t): the mirrored node
-        a1 = (s2 * k1 - r * k2) / det
-        a2 = (s2 * k2 - r * k1) / det
-        m = a1 * x0 + a2 * x1
-        v = s2 - (a1 * k1 + a2 * k2)
-        if v <= 1e-12 * s2:
-            continue
-        gap = b0 + slope * XI[q] * h - m
-        sd = math.sqrt(v)
-        z = gap / sd
-        if z > Z_SKIP:
-            continue
-        d1 = (s2 * k1p - r * k2p) / det
-        d2 = (s2 * k2p - r * k1p) / det
-        cq = -(a1 * k1p + a2 * k2p)
-        mu = d1 * x0 + d2 * x1 + cq / v * gap - slope
-        s = math.sqrt(max(lam - (d1 * k1p + d2 * k2p) - cq * cq / v, 1e-30 * lam))
-        part = WEIGHT[q] * h * _exp(-0.5 * z * z) * _INV_SQ2PI / sd * _mean_excess(mu, s)
-        share[q] = part
-        total += part
-    return total
+        for i in range(m):
+            s2 = c[0, i]
+            r = c[NODES + 1, i]
+            lam = cp[0, i]
+            k1, k1p = c[1 + q, i], cp[1 + q, i]
+            k2, k2p = c[NODES - q, i], -cp[NODES - q, i]  # C(h - t) and d/dt C(h - t): the mirrored node
+            a1 = (s2 * k1 - r * k2) * inv_det[i]
+            a2 = (s2 * k2 - r * k1) * inv_det[i]
+            inv_v = 1.0 / max(s2 - (a1 * k1 + a2 * k2), 1e-12 * s2)
+            d1 = (s2 * k1p - r * k2p) * inv_det[i]
+            d2 = (s2 * k2p - r * k1p) * inv_det[i]
+            cq = -(a1 * k1p + a2 * k2p)
+            mom[0, q, i] = a1
+            mom[1, q, i] = a2
+            mom[2, q, i] = math.sqrt(inv_v)
+            mom[3, q, i] = d1
+            mom[4, q, i] = d2
+            mom[5, q, i] = cq * inv_v
+            mom[6, q, i] = math.sqrt(max(lam - (d1 * k1p + d2 * k2p) - cq * cq * inv_v, 1e-30 * lam))
 
 
 @njit(inline="always")
-def _when(share, total, u):
+def _side(sx0, sx1, g0, g1, m, h, mom, share, total):
+    """Expected up-crossings, per lane, of B(t) = x0 + g0 + (x1 + g1 - x0 - g0) t / h over (0, h) given
+    x(0) = x0 and x(h) = x1 (lanes whose g0 or g1 is not positive get 0), from :func:`_moments`; share[q, i]
+    receives each node's part, total[i] the sum. Nodes further than Z_SKIP deviations add 0."""
+    for i in range(m):
+        total[i] = 0.0
+    for q in range(NODES):
+        tq = XI[q] * h
+        wq = WEIGHT[q] * h * _INV_SQ2PI
+        for i in range(m):
+            x0 = sx0[i]
+            x1 = sx1[i]
+            b0 = x0 + g0[i]
+            slope = (x1 + g1[i] - b0) / h
+            gap = b0 + slope * tq - (mom[0, q, i] * x0 + mom[1, q, i] * x1)
+            z = gap * mom[2, q, i]
+            mu = mom[3, q, i] * x0 + mom[4, q, i] * x1 + mom[5, q, i] * gap - slope
+            part = wq * _exp(-0.5 * z * z) * mom[2, q, i] * _mean_excess(mu, mom[6, q, i])
+            keep = (z <= Z_SKIP) & (g0[i] > 0.0) & (g1[i] > 0.0)
+            part = part if keep else 0.0
+            share[q, i] = part
+            total[i] += part
+
+
+@njit(inline="always")
+def _when(share, i, total, u):
     """A crossing's time as a fraction of the step: the node whose share of ``total`` u (in [0, 1)) falls in,
     then the place in that node's cell where u falls within its share (uniform, given the node)."""
     target = u * total
     acc = 0.0
     for q in range(NODES):
-        if share[q] <= 0.0:
+        part = share[q, i]
+        if part <= 0.0:
             continue
-        if acc + share[q] > target or q == NODES - 1:
-            frac = min(max((target - acc) / share[q], 0.0), 1.0)
+        if acc + part > target or q == NODES - 1:
+            frac = min(max((target - acc) / part, 0.0), 1.0)
             return CELL[q] + frac * (CELL[q + 1] - CELL[q])
-        acc += share[q]
+        acc += part
     return 1.0
 
 
-@njit(parallel=True, nogil=True, cache=True)
+@njit(parallel=True, nogil=True, cache=True, error_model="numpy", fastmath={"nnan", "ninf"})
 def crossings(x0, x1, gap_on0, gap_on1, gap_off0, gap_off1, h, var, rate, b, p_on, p_off, when_on, when_off, u_on,
               u_off, far_sd):
     """Per pixel: the probabilities p_on, p_off of an up-crossing of the ON level and a down-crossing of the OFF
     level over the step, and, for u_on, u_off in [0, 1), a time for each (fraction of the step). A side whose gap
-    is not positive at an end, or that is further than ``far_sd`` noise standard deviations from the noise's
-    reach, gets probability 0 without quadrature."""
+    is not positive at an end, or whose level is further than ``far_sd`` noise standard deviations beyond the
+    samples' excursion, gets probability 0 without quadrature. Pixels are taken in blocks of BLOCK; a block's
+    open pixels are gathered into lanes, and every loop over lanes is branch-free (vectorised)."""
     eb = np.empty(NODES + 2)
     eb[0] = 1.0
     for q in range(NODES):
@@ -174,12 +189,11 @@ def crossings(x0, x1, gap_on0, gap_on1, gap_off0, gap_off1, h, var, rate, b, p_o
     eb[NODES + 1] = _exp(-b * h)
     n_px = x0.size
     for blk in prange((n_px + BLOCK - 1) // BLOCK):
-        c = np.empty(NODES + 2)
-        cp = np.empty(NODES + 2)
-        share = np.empty(NODES)
-        ea = np.empty((var.shape[0], NODES + 2))
-        last = np.full(var.shape[0], -1.0)
-        for p in range(blk * BLOCK, min(n_px, (blk + 1) * BLOCK)):
+        lo = blk * BLOCK
+        hi = min(n_px, lo + BLOCK)
+        idx = np.empty(BLOCK, np.int64)
+        m = 0
+        for p in range(lo, hi):
             p_on[p] = 0.0
             p_off[p] = 0.0
             when_on[p] = 1.0
@@ -191,16 +205,44 @@ def crossings(x0, x1, gap_on0, gap_on1, gap_off0, gap_off1, h, var, rate, b, p_o
             on_open = gap_on0[p] > 0.0 and gap_on1[p] > 0.0 and min(gap_on0[p] + x0[p], gap_on1[p] + x1[p]) < reach
             off_open = (gap_off0[p] > 0.0 and gap_off1[p] > 0.0
                         and min(gap_off0[p] - x0[p], gap_off1[p] - x1[p]) < reach)
-            if not (on_open or off_open):
-                continue
-            _covariances(var, rate, p, b, h, eb, ea, last, c, cp)
-            if on_open:
-                e = _side(x0[p], x1[p], gap_on0[p], gap_on1[p], h, c, cp, share)
+            if on_open or off_open:
+                idx[m] = p
+                m += 1
+        if m == 0:
+            continue
+        c = np.empty((NODES + 2, m))
+        cp = np.empty((NODES + 2, m))
+        mom = np.empty((7, NODES, m))
+        share = np.empty((NODES, m))
+        total = np.empty(m)
+        sx0 = np.empty(m)
+        sx1 = np.empty(m)
+        g0 = np.empty(m)
+        g1 = np.empty(m)
+        lv = np.empty((var.shape[0], m))
+        la = np.empty((var.shape[0], m))
+        for k in range(var.shape[0]):
+            for i in range(m):
+                lv[k, i] = var[k, idx[i]]
+                la[k, i] = rate[k, idx[i]]
+        _covariances(lv, la, m, b, h, eb, c, cp)
+        _moments(c, cp, m, total, mom)
+        for side in range(2):
+            sign = 1.0 if side == 0 else -1.0
+            for i in range(m):
+                p = idx[i]
+                sx0[i] = sign * x0[p]
+                sx1[i] = sign * x1[p]
+                g0[i] = gap_on0[p] if side == 0 else gap_off0[p]
+                g1[i] = gap_on1[p] if side == 0 else gap_off1[p]
+            _side(sx0, sx1, g0, g1, m, h, mom, share, total)
+            for i in range(m):
+                e = total[i]
                 if e > 0.0:
-                    p_on[p] = 1.0 - _exp(-e)
-                    when_on[p] = _when(share, e, u_on[p])
-            if off_open:
-                e = _side(-x0[p], -x1[p], gap_off0[p], gap_off1[p], h, c, cp, share)
-                if e > 0.0:
-                    p_off[p] = 1.0 - _exp(-e)
-                    when_off[p] = _when(share, e, u_off[p])
+                    p = idx[i]
+                    if side == 0:
+                        p_on[p] = 1.0 - _exp(-e)
+                        when_on[p] = _when(share, i, e, u_on[p])
+                    else:
+                        p_off[p] = 1.0 - _exp(-e)
+                        when_off[p] = _when(share, i, e, u_off[p])

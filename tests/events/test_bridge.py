@@ -76,7 +76,8 @@ def test_stationary_rate_far_from_the_ends():
 def test_symmetries():
     """The OFF side is the ON side of the negated noise; time reversal (swapping the samples and the gaps)
     keeps the probability (every up-crossing between two samples below a level has its down-crossing) to the
-    quadrature's accuracy (16 nodes: 7 % where a sample lies within 0.1 sigma of its level); a larger gap never raises it."""
+    quadrature's accuracy (16 nodes: 7 % where a sample lies within 0.1 sigma of its level); a larger gap never
+    raises it."""
     var, rate = LAWS["mid"]
     rng = np.random.default_rng(3)
     n = 400
