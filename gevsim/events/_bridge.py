@@ -29,6 +29,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from gevsim.pixel._cascade import separate
 from gevsim.pixel._fastmath import expf
 
 _F = np.float32
@@ -133,7 +134,7 @@ def _moments(c, cp, m, inv_det, mom):
 
 
 @njit(inline="always")
-def _side(sx0, sx1, g0, g1, m, h, mom, share, total):
+def side(sx0, sx1, g0, g1, m, h, mom, share, total):
     """Expected up-crossings, per lane, of B(t) = x0 + g0 + (x1 + g1 - x0 - g0) t / h over (0, h) given
     x(0) = x0 and x(h) = x1 (lanes whose g0 or g1 is not positive get 0), from :func:`_moments`; share[q, i]
     receives each node's part, total[i] the sum. Nodes further than Z_SKIP deviations add 0."""
@@ -158,7 +159,7 @@ def _side(sx0, sx1, g0, g1, m, h, mom, share, total):
 
 
 @njit(inline="always")
-def _when(share, i, total, u):
+def when(share, i, total, u):
     """A crossing's time as a fraction of the step: the node whose share of ``total`` u (in [0, 1)) falls in,
     then the place in that node's cell where u falls within its share (uniform, given the node)."""
     target = u * total
@@ -183,10 +184,7 @@ def crossings(x0, x1, gap_on0, gap_on1, gap_off0, gap_off1, h, var, rate, b, p_o
     samples' excursion, gets probability 0 without quadrature. Pixels are taken in blocks of BLOCK; a block's
     open pixels are gathered into lanes, and every loop over lanes is branch-free (vectorised)."""
     eb = np.empty(NODES + 2)
-    eb[0] = 1.0
-    for q in range(NODES):
-        eb[1 + q] = _exp(-b * XI[q] * h)
-    eb[NODES + 1] = _exp(-b * h)
+    node_exps(b, h, eb)
     n_px = x0.size
     for blk in prange((n_px + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
@@ -225,24 +223,59 @@ def crossings(x0, x1, gap_on0, gap_on1, gap_off0, gap_off1, h, var, rate, b, p_o
             for i in range(m):
                 lv[k, i] = var[k, idx[i]]
                 la[k, i] = rate[k, idx[i]]
-        _covariances(lv, la, m, b, h, eb, c, cp)
-        _moments(c, cp, m, total, mom)
-        for side in range(2):
-            sign = 1.0 if side == 0 else -1.0
+        lanes(lv, la, m, b, h, eb, c, cp, mom, total)
+        for off_side in range(2):
+            sign = 1.0 if off_side == 0 else -1.0
             for i in range(m):
                 p = idx[i]
                 sx0[i] = sign * x0[p]
                 sx1[i] = sign * x1[p]
-                g0[i] = gap_on0[p] if side == 0 else gap_off0[p]
-                g1[i] = gap_on1[p] if side == 0 else gap_off1[p]
-            _side(sx0, sx1, g0, g1, m, h, mom, share, total)
+                g0[i] = gap_on0[p] if off_side == 0 else gap_off0[p]
+                g1[i] = gap_on1[p] if off_side == 0 else gap_off1[p]
+            side(sx0, sx1, g0, g1, m, h, mom, share, total)
             for i in range(m):
                 e = total[i]
                 if e > 0.0:
                     p = idx[i]
-                    if side == 0:
-                        p_on[p] = 1.0 - _exp(-e)
-                        when_on[p] = _when(share, i, e, u_on[p])
+                    if off_side == 0:
+                        p_on[p] = probability(e)
+                        when_on[p] = when(share, i, e, u_on[p])
                     else:
-                        p_off[p] = 1.0 - _exp(-e)
-                        when_off[p] = _when(share, i, e, u_off[p])
+                        p_off[p] = probability(e)
+                        when_off[p] = when(share, i, e, u_off[p])
+
+
+@njit(inline="always")
+def lane_law(law, itot, lv, la, i):
+    """Lane i's two noise components at total photocurrent ``itot`` (A) from ``law``
+    (:meth:`gevsim.pixel.noise.NoiseLaw.as_tuple`), as :meth:`~gevsim.pixel.noise.NoiseLaw.components`."""
+    shot_q, amp, fc_per_a, fc_max, f_out, read_var, read_rate = law
+    beta = 2.0 * math.pi * f_out
+    alpha = separate(2.0 * math.pi * min(fc_per_a * itot, fc_max), beta)
+    fc = alpha / (2.0 * math.pi)
+    lv[0, i] = (shot_q * fc / itot + amp / fc) * beta / (alpha + beta)
+    la[0, i] = alpha
+    lv[1, i] = read_var
+    la[1, i] = read_rate
+
+
+@njit(inline="always")
+def node_exps(b, h, eb):
+    """e^(-b tau) at 0, the nodes and h (the covariances' points)."""
+    eb[0] = 1.0
+    for q in range(NODES):
+        eb[1 + q] = _exp(-b * XI[q] * h)
+    eb[NODES + 1] = _exp(-b * h)
+
+
+@njit(inline="always")
+def lanes(lv, la, m, b, h, eb, c, cp, mom, inv_det):
+    """The node moments of m lanes whose components are lv, la (:func:`_covariances`, :func:`_moments`)."""
+    _covariances(lv, la, m, b, h, eb, c, cp)
+    _moments(c, cp, m, inv_det, mom)
+
+
+@njit(inline="always")
+def probability(e):
+    """P(at least one crossing) from the expected number e: 1 - exp(-e)."""
+    return 1.0 - _exp(-e)

@@ -101,6 +101,72 @@ def _release(reset_sigma, key, p, count):
     return 0.0
 
 
+@njit(inline="always")
+def _pixel_step(i, p, force_s, force_pol, d0, slope, d_end, last_t, count, th_on, th_off, held_after, ta, dt,
+                refractory, reset_sigma, key, px_x, px_y, us_last, buf_t, buf_x, buf_y, buf_p, base, n, cap):
+    """The exact crossing loop of one pixel (``p``, scan slot ``i``) over one step: its events into the
+    buffers from ``n``, its distance at the step end into d_end[i], its last event time and count. A crossing
+    at ``force_s`` (fraction of the step, >= 0) of polarity ``force_pol`` comes first, if given (a crossing
+    between the samples: :mod:`gevsim.events._bridge_dvs`). Returns (n, stopped): stopped when the events
+    do not fit (nothing of this pixel's step is kept then: n is the value on entry). After a forced crossing the
+    signal runs straight from the level to the step's end sample (its slope changes; otherwise it never does)."""
+    n_pixel = n
+    lt = last_t[p]
+    c = count[p]
+    k = slope[i]
+    d = d0[i]
+    s = 0.0
+    m = 0
+    on, off = th_on[p], th_off[p]
+    if lt >= held_after:  # held in reset since an earlier step
+        ready = (lt + refractory - ta) / dt
+        if ready >= 1.0:
+            d_end[i] = 0.0  # still held at the step end: the level is the signal
+            return n, False
+        s = ready
+        d = _release(reset_sigma, key, p, c)
+    k_after = k
+    while m < MAX_EVENTS_PER_STEP:
+        if force_s >= 0.0:  # the signal was at the level then: from there it runs straight to the step's end
+            cross, pol = force_s, force_pol
+            k_after = (d + k - (on if pol > 0 else -off)) / max(1.0 - force_s, 1e-12)
+            force_s = -1.0
+        elif d >= on:
+            cross, pol = s, 1
+        elif d <= -off:
+            cross, pol = s, -1
+        elif k > 0.0:
+            cross, pol = s + (on - d) / k, 1
+        elif k < 0.0:
+            cross, pol = s + (-off - d) / k, -1
+        else:
+            break
+        if cross > 1.0:
+            break
+        te = ta + cross * dt
+        if n == cap:
+            return n_pixel, True
+        buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_last)
+        buf_x[base + n] = px_x[p]
+        buf_y[base + n] = px_y[p]
+        buf_p[base + n] = pol > 0
+        n += 1
+        c += 1
+        lt = te
+        m += 1
+        k = k_after
+        s = cross + refractory / dt if refractory > 0.0 else cross
+        if s >= 1.0:  # held in reset past the step end
+            d = 0.0
+            s = 1.0
+            break
+        d = _release(reset_sigma, key, p, c)
+    d_end[i] = d + k * (1.0 - s)
+    last_t[p] = lt
+    count[p] = c
+    return n, False
+
+
 @njit(parallel=True, nogil=True, cache=True)
 def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_off, leak, leak_light, refractory,
                reset_sigma, key, px_x, px_y, buf_t, buf_x, buf_y, buf_p, region, order):
@@ -148,61 +214,14 @@ def brightness(v, t_start, t_end, us_end, ref, v_prev, last_t, count, th_on, th_
                     for q in range(_compact(busy, hi - first, idx)):
                         i = idx[q]
                         p = first + i
-                        n_pixel = n
-                        lt = last_t[p]
-                        c = count[p]
-                        k = slope[i]
-                        d = d0[i]
-                        s = 0.0
-                        m = 0
-                        on, off = th_on[p], th_off[p]
-                        if lt >= held_after:  # held in reset since an earlier step
-                            ready = (lt + refractory - ta) / dt
-                            if ready >= 1.0:
-                                d_end[i] = 0.0  # still held at the step end: the level is the signal
-                                continue
-                            s = ready
-                            d = _release(reset_sigma, key, p, c)
-                        while m < MAX_EVENTS_PER_STEP:
-                            if d >= on:
-                                cross, pol = s, 1
-                            elif d <= -off:
-                                cross, pol = s, -1
-                            elif k > 0.0:
-                                cross, pol = s + (on - d) / k, 1
-                            elif k < 0.0:
-                                cross, pol = s + (-off - d) / k, -1
-                            else:
-                                break
-                            if cross > 1.0:
-                                break
-                            te = ta + cross * dt
-                            if n == cap:
-                                stopped = True
-                                break
-                            buf_t[base + n] = min(np.int64(math.floor(te * 1e6 + 0.5)), us_end[t])
-                            buf_x[base + n] = px_x[p]
-                            buf_y[base + n] = px_y[p]
-                            buf_p[base + n] = pol > 0
-                            n += 1
-                            c += 1
-                            lt = te
-                            m += 1
-                            s = cross + refractory / dt if refractory > 0.0 else cross
-                            if s >= 1.0:  # held in reset past the step end
-                                d = 0.0
-                                s = 1.0
-                                break
-                            d = _release(reset_sigma, key, p, c)
+                        n, stopped = _pixel_step(i, p, -1.0, 0, d0, slope, d_end, last_t, count, th_on, th_off,
+                                                 held_after, ta, dt, refractory, reset_sigma, key, px_x, px_y,
+                                                 us_end[t], buf_t, buf_x, buf_y, buf_p, base, n, cap)
                         if stopped:  # this pixel's step and the rest are redone on resumption
-                            n = n_pixel
                             region[b, RESUME_T] = t
                             region[b, RESUME_I] = p - lo
                             end = p
                             break
-                        d_end[i] = d + k * (1.0 - s)
-                        last_t[p] = lt
-                        count[p] = c
                 _dvs_commit(v[t, first:end], ref[first:end], v_prev[first:end], d_end)
                 if stopped:
                     break

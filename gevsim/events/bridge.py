@@ -15,18 +15,20 @@ Ornstein-Uhlenbeck bridge of the photoreceptor pole alone breaks where that pole
 ~1 (from 10 chip lux at 500 us): the output pole and the read noise make the path smooth, and only the full
 covariance describes it there.
 
-Not yet used by the emulators: the DVS and gradient kernels still take the short steps (docs/long-steps.md says
-what wiring it in takes).
+The DVS uses it when given a :class:`Bridge` (:meth:`gevsim.events.BrightnessEmulator.process`); the gradient
+comparators and the driver do not yet (docs/long-steps.md).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from gevsim.events import _bridge
+from gevsim.pixel.noise import NoiseLaw
 
 #: Sides further than this many noise standard deviations (beyond the samples' own excursion) from their level
 #: are not integrated: their probability is below ~1e-11 per step.
@@ -77,3 +79,33 @@ def crossings(x0: ArrayLike, x1: ArrayLike, gap_on: tuple[ArrayLike, ArrayLike],
     out = [np.empty(n) for _ in range(4)]
     _bridge.crossings(x0, x1, *gaps, float(step_s), var, rate, b, *out, u_on, u_off, FAR_SD)
     return tuple(out)
+
+
+@dataclass(frozen=True)
+class Bridge:
+    """What a DVS needs to place crossings between its samples (:meth:`BrightnessEmulator.process
+    <gevsim.events.BrightnessEmulator.process>`'s ``bridge``): at the same T samples as its signal,
+
+    noise_free : (T, H, W) the signal without its temporal noise (a noise-free twin of the photoreceptor);
+    total_a : (T, H, W) the total photocurrent over each step ending at a sample (A), which sets the noise law;
+    law : the photoreceptor's :class:`~gevsim.pixel.noise.NoiseLaw` (:meth:`Photoreceptor.noise_law
+        <gevsim.pixel.Photoreceptor.noise_law>`).
+    """
+
+    noise_free: ArrayLike
+    total_a: ArrayLike
+    law: NoiseLaw
+
+    def arrays(self, shape: tuple[int, ...], first: bool) -> tuple[np.ndarray, np.ndarray]:
+        """(noise_free, total_a) as (T, pixels) arrays checked against the signal's ``shape`` (T, H, W); the
+        photocurrent without its first sample when that sample only sets the levels (``first``)."""
+        mu = np.asarray(self.noise_free, dtype=np.float32)
+        itot = np.asarray(self.total_a, dtype=np.float32)
+        for name, a in (("noise_free", mu), ("total_a", itot)):
+            if a.shape != tuple(shape):
+                raise ValueError(f"bridge.{name} has shape {a.shape}, the signal {tuple(shape)}")
+        if not (np.all(np.isfinite(mu)) and np.all(itot > 0.0)):
+            raise ValueError("bridge: noise_free must be finite and total_a > 0")
+        n = int(np.prod(shape[1:]))
+        mu, itot = mu.reshape(-1, n), itot.reshape(-1, n)
+        return np.ascontiguousarray(mu), np.ascontiguousarray(itot[1:] if first else itot)

@@ -19,9 +19,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gevsim import _portable as pm
-from gevsim.events import _kernels
+from gevsim.events import _bridge_dvs, _kernels
 from gevsim.events._runner import EventBlocks, SampledSignal
+from gevsim.events.bridge import Bridge
 from gevsim.events.types import BRIGHTNESS_DTYPE, empty
+from gevsim.pixel._kernels import mix64
 from gevsim.pixel.params import REFERENCE_TEMPERATURE_K, EventParams, thermal_factor
 
 
@@ -92,6 +94,8 @@ class BrightnessEmulator:
         self.start_seed = int(rng.integers(0, 2**63, dtype=np.int64))  # keys start_from_noise's draws
         self.ref = np.zeros(n)
         self.v_prev = np.zeros(n)
+        self.mu_prev: np.ndarray | None = None  # the noise-free signal at the last sample (bridged steps only)
+        self.bridge_key = np.uint64(mix64(self.reset_key ^ np.uint64(0xB41D6E5C0FFEE)))  # keys the bridge's draws
         self.last_t = np.full(n, -np.inf)
         self.count = np.zeros(n, np.int64)
         self._px_y, self._px_x = (a.ravel().astype(np.int16) for a in np.indices(self.shape))
@@ -119,31 +123,47 @@ class BrightnessEmulator:
                     drift, float(self.params.reset_noise_ln), uniform, u)
         self.start_ref = np.asarray(signal_ln, float).reshape(-1) + u
 
-    def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
+    def process(self, signal: ArrayLike, t_s: ArrayLike, *, bridge: Bridge | None = None) -> np.ndarray:
         """Events (sorted by time) from samples ``signal`` (T, H, W) in ln units at times ``t_s`` (T,).
 
-        The signal is linear between samples; the very first sample only sets
-        the memorised levels.
+        The signal is linear between samples; the very first sample only sets the memorised levels. With
+        ``bridge`` (:class:`gevsim.events.bridge.Bridge`: the noise-free signal at the same samples, the
+        photocurrent over each step and the noise law), a pixel quiet at both samples of a step may also cross a
+        level in between, with the probability :mod:`gevsim.events.bridge` gives (long steps). The first
+        bridged step after steps without it takes the noise at its first sample as 0.
         """
         v, t_start, t_end, first = self.clock.steps(signal, t_s, name="signal")
         if len(t_end) == 0:
             return empty(self.dtype)
         ref, v_prev, last_t, count = self.ref.copy(), self.v_prev.copy(), self.last_t.copy(), self.count.copy()
+        mu = itot = None
+        if bridge is not None:
+            mu, itot = bridge.arrays(v.shape, first)
         if first:
             v_prev = v[0].reshape(-1).astype(np.float64)
             ref = v_prev - self.leak_phase * self.threshold_on_ln if self.start_ref is None else self.start_ref.copy()
             v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
+            if mu is not None:
+                self.mu_prev, mu = mu[0].astype(np.float64), mu[1:]
         flat = v.reshape(len(t_end), self.shape[0] * self.shape[1])
         p = self.params
+        mu_prev = (v_prev.copy() if self.mu_prev is None else self.mu_prev.copy()) if bridge is not None else None
 
         def kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
-            _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end, ref, v_prev, last_t, count,
-                                self.threshold_on_ln, self.threshold_off_ln, self.leak_ln_per_s, self.leak_light,
-                                p.refractory_s,
-                                p.reset_noise_ln, self.reset_key, self._px_x, self._px_y, buf_t, buf_x, buf_y,
-                                buf_p, region, order)
+            args = (us_end, ref, v_prev, last_t, count, self.threshold_on_ln, self.threshold_off_ln,
+                    self.leak_ln_per_s, self.leak_light, p.refractory_s, p.reset_noise_ln, self.reset_key)
+            tail = (self._px_x, self._px_y, buf_t, buf_x, buf_y, buf_p, region, order)
+            if bridge is None:
+                _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], *args, *tail)
+            else:
+                us, r, vp, lt, c, on, off, lk, ll, refr, rs, key = args
+                _bridge_dvs.brightness_bridged(flat[a:b], mu[a:b], itot[a:b], t_start[a:b], t_end[a:b], us, r, vp,
+                                               mu_prev, lt, c, on, off, lk, ll, refr, rs, key, self.bridge_key,
+                                               bridge.law.as_tuple(), *tail)
 
         events = self.blocks.collect(kernel, t_start, t_end)
         self.ref, self.v_prev, self.last_t, self.count = ref, v_prev, last_t, count
+        if mu_prev is not None:
+            self.mu_prev = mu_prev
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
         return events

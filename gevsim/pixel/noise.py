@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ from gevsim.pixel.mechanisms.flicker import flicker_noise_poles
 from gevsim.pixel.params import NoiseParams
 from gevsim.pixel.thermal import REFERENCE_TEMPERATURE_K
 
-__all__ = ["STEP_FRACTION", "coarsest_step_s", "dark_current_a", "fixed_pattern", "flicker_noise_poles",
+__all__ = ["STEP_FRACTION", "NoiseLaw", "coarsest_step_s", "dark_current_a", "fixed_pattern", "flicker_noise_poles",
            "shot_noise_variance_ln"]
 
 
@@ -80,3 +81,42 @@ def coarsest_step_s(photoreceptor: Any, noise: NoiseParams, max_photocurrent_a: 
     if not fast:
         return None
     return STEP_FRACTION / (2.0 * math.pi * math.sqrt(max(fast) * f_out))
+
+
+@dataclass(frozen=True)
+class NoiseLaw:
+    """The photoreceptor output's temporal noise as white noises each through its own pole and the output pole,
+    at any total photocurrent I (A), as the photoreceptor kernel draws it (:mod:`gevsim.pixel._cascade`):
+
+    - shot and amplifier noise after the photoreceptor's pole f_c = min(fc_per_a I, fc_max_hz) (moved off the
+      output pole as the kernel moves it): variance (shot_q f_c / I + amp_ln2_hz / f_c) beta / (alpha + beta)
+      at the output, alpha = 2 pi f_c, beta = 2 pi output_pole_hz;
+    - the read noise after its own pole: variance ``read_var_ln2`` at the output, rate ``read_rate_rad_s``.
+
+    The 1/f poles (one pole each, no output pole) are not part of it."""
+
+    shot_q: float
+    amp_ln2_hz: float
+    fc_per_a: float
+    fc_max_hz: float
+    output_pole_hz: float
+    read_var_ln2: float
+    read_rate_rad_s: float
+
+    def as_tuple(self) -> tuple[float, ...]:
+        """The fields in order, as floats (a compiled kernel's argument)."""
+        return tuple(float(getattr(self, f)) for f in self.__dataclass_fields__)
+
+    def components(self, total_a: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """(var, rate), each (2, pixels): each component's variance at the output (ln^2) and own pole (rad/s)
+        at total photocurrent ``total_a``; a component the sensor does not have has variance 0."""
+        from gevsim.pixel._cascade import separated_hz
+
+        itot = np.asarray(total_a, float).reshape(-1)
+        beta = 2.0 * math.pi * self.output_pole_hz
+        fc = separated_hz(np.minimum(self.fc_per_a * itot, self.fc_max_hz), self.output_pole_hz)
+        alpha = 2.0 * math.pi * fc
+        var_s = (self.shot_q * fc / itot + self.amp_ln2_hz / fc) * beta / (alpha + beta)
+        var = np.stack([var_s, np.full(itot.shape, self.read_var_ln2)])
+        rate = np.stack([alpha, np.full(itot.shape, self.read_rate_rad_s)])
+        return var, rate

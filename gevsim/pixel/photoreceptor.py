@@ -9,6 +9,7 @@ input; the optional second pole is also integrated exactly.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable, Sequence
 
@@ -20,7 +21,7 @@ from gevsim._finite import count_invalid
 from gevsim.pixel import _kernels
 from gevsim.pixel._cascade import separated_hz
 from gevsim.pixel.mechanisms import NOISE_MECHANISMS, kernel_noise
-from gevsim.pixel.noise import fixed_pattern
+from gevsim.pixel.noise import NoiseLaw, fixed_pattern
 from gevsim.pixel.params import NoiseParams, PhotoreceptorParams
 from gevsim.timebase import check_chunk
 
@@ -155,6 +156,7 @@ class Photoreceptor:
         self.v1, self.v2 = u0 + w1, u0 + w2
         self.settled_current_a = first
         self.settled_ln = self.v2 + (self.offset_ln if self.offset_ln is not None else 0.0)  # noise-free output
+        self._noise_free_start = (self.v1.copy(), self.v2.copy(), self.t_s)
         if not self.cold_start:
             self._stationary_noise(first, self.v1, self.v2, self.fn)
         self.started = True
@@ -183,28 +185,42 @@ class Photoreceptor:
             s = math.sqrt(self.fn_var[0])
             v2 += beta / (a_r + beta) * fn[0] + s * math.sqrt(a_r * beta) / (a_r + beta) * self.start_z[2]
 
-    def noise_components(self, total_a: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
-        """The output's noise at total photocurrent ``total_a`` (default: the settled one) as K white noises each
-        through its own pole and the output pole: (var, rate), each (K, pixels), var the component's variance at
-        the output (ln^2) and rate its own pole (rad/s, moved off the output pole as the kernel moves it). The
-        shot and amplifier noise after the photoreceptor's pole, then the read noise after its own. The 1/f
-        poles (one pole each, no output pole) are not among them. None without an output pole."""
-        p = self.params
-        if p.second_pole_hz is None:
+    def noise_free_twin(self) -> Photoreceptor:
+        """A copy that follows this photoreceptor's noise-free path: the same fixed patterns and response, every
+        temporal noise off, in the noise-free states :meth:`settle` found. Take it right after :meth:`settle`
+        and give it the same photocurrent: its output is then the mean of this one's given the light (the
+        cascade is linear in its states), the noise-free signal a :class:`gevsim.events.bridge.Bridge` needs."""
+        start = getattr(self, "_noise_free_start", None)
+        if start is None or start[2] != self.t_s:
+            raise RuntimeError("noise_free_twin: take it right after settle(), before the first process()")
+        twin = copy.deepcopy(self)
+        twin.shot_q = twin.amp_ln2_hz = 0.0
+        twin.fn_var, twin.fn = np.zeros_like(self.fn_var), np.zeros_like(self.fn)
+        twin.v1, twin.v2 = start[0].copy(), start[1].copy()
+        return twin
+
+    def noise_law(self) -> NoiseLaw | None:
+        """The output noise's law at any photocurrent (:class:`gevsim.pixel.noise.NoiseLaw`); None without an
+        output pole (a single pole's path has no crossing rate) or without a bandwidth."""
+        fc_ref, i_ref, fc_max, f_out = self._bandwidth()
+        if not f_out or fc_ref <= 0.0:
             return None
-        itot = np.asarray(self.settled_current_a if total_a is None else total_a, float).reshape(-1)
-        beta = 2.0 * math.pi * p.second_pole_hz
-        var, rate = [], []
-        if self.shot_q > 0 or self.amp_ln2_hz > 0:
-            fc = separated_hz(p.cutoff_at(itot), p.second_pole_hz)
-            alpha = 2.0 * math.pi * fc
-            var.append((self.shot_q * fc / itot + self.amp_ln2_hz / fc) * beta / (alpha + beta))
-            rate.append(alpha)
+        beta = 2.0 * math.pi * f_out
+        read_var, read_rate = 0.0, 1.0
         if self.n_read:
-            alpha_r = 2.0 * math.pi * float(separated_hz(self.fn_hz[0], p.second_pole_hz))
-            var.append(np.full(itot.shape, self.fn_var[0] * beta / (alpha_r + beta)))
-            rate.append(np.full(itot.shape, alpha_r))
-        return np.array(var).reshape(-1, itot.size), np.array(rate).reshape(-1, itot.size)
+            read_rate = 2.0 * math.pi * float(separated_hz(self.fn_hz[0], f_out))
+            read_var = float(self.fn_var[0]) * beta / (read_rate + beta)
+        return NoiseLaw(float(self.shot_q), float(self.amp_ln2_hz), fc_ref / i_ref, fc_max, float(f_out), read_var,
+                        read_rate)
+
+    def noise_components(self, total_a: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """The output's noise at total photocurrent ``total_a`` (default: the settled one) as
+        :meth:`NoiseLaw.components <gevsim.pixel.noise.NoiseLaw.components>` gives it: (var, rate), each
+        (K, pixels). None without an output pole."""
+        law = self.noise_law()
+        if law is None:
+            return None
+        return law.components(self.settled_current_a if total_a is None else total_a)
 
     def output_noise_law(self, lag_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The output noise's standard deviation (ln), Rice frequency (Hz) and correlation over ``lag_s`` per
