@@ -136,34 +136,33 @@ class BrightnessEmulator:
         if len(t_end) == 0:
             return empty(self.dtype)
         ref, v_prev, last_t, count = self.ref.copy(), self.v_prev.copy(), self.last_t.copy(), self.count.copy()
-        mu = itot = None
-        if bridge is not None:
-            mu, itot = bridge.arrays(v.shape, first)
         if first:
             v_prev = v[0].reshape(-1).astype(np.float64)
             ref = v_prev - self.leak_phase * self.threshold_on_ln if self.start_ref is None else self.start_ref.copy()
-            v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
-            if mu is not None:
-                self.mu_prev, mu = mu[0].astype(np.float64), mu[1:]
-        flat = v.reshape(len(t_end), self.shape[0] * self.shape[1])
+        flat = v[1:] if first else v
+        t_start, t_end = (t_start[1:], t_end[1:]) if first else (t_start, t_end)
+        flat = flat.reshape(len(t_end), self.shape[0] * self.shape[1])
         p = self.params
-        mu_prev = (v_prev.copy() if self.mu_prev is None else self.mu_prev.copy()) if bridge is not None else None
+        head = (ref, v_prev, last_t, count, self.threshold_on_ln, self.threshold_off_ln, self.leak_ln_per_s,
+                self.leak_light, p.refractory_s, p.reset_noise_ln, self.reset_key)
+        if bridge is None:
+            def kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
+                _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end, *head, self._px_x, self._px_y,
+                                    buf_t, buf_x, buf_y, buf_p, region, order)
+            events = self.blocks.collect(kernel, t_start, t_end)
+        else:
+            mu, itot = bridge.arrays(v.shape, first)
+            mu_prev = mu[0].astype(np.float64) if first else (v_prev if self.mu_prev is None else self.mu_prev).copy()
+            mu = mu[1:] if first else mu
+            law = bridge.law.as_tuple()
 
-        def kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
-            args = (us_end, ref, v_prev, last_t, count, self.threshold_on_ln, self.threshold_off_ln,
-                    self.leak_ln_per_s, self.leak_light, p.refractory_s, p.reset_noise_ln, self.reset_key)
-            tail = (self._px_x, self._px_y, buf_t, buf_x, buf_y, buf_p, region, order)
-            if bridge is None:
-                _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], *args, *tail)
-            else:
-                us, r, vp, lt, c, on, off, lk, ll, refr, rs, key = args
-                _bridge_dvs.brightness_bridged(flat[a:b], mu[a:b], itot[a:b], t_start[a:b], t_end[a:b], us, r, vp,
-                                               mu_prev, lt, c, on, off, lk, ll, refr, rs, key, self.bridge_key,
-                                               bridge.law.as_tuple(), *tail)
-
-        events = self.blocks.collect(kernel, t_start, t_end)
-        self.ref, self.v_prev, self.last_t, self.count = ref, v_prev, last_t, count
-        if mu_prev is not None:
+            def kernel(a, b, us_end, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
+                r, vp, lt, c, *rest = head
+                _bridge_dvs.brightness_bridged(flat[a:b], mu[a:b], itot[a:b], t_start[a:b], t_end[a:b], us_end, r,
+                                               vp, mu_prev, lt, c, *rest, self.bridge_key, law, self._px_x,
+                                               self._px_y, buf_t, buf_x, buf_y, buf_p, region, order)
+            events = self.blocks.collect(kernel, t_start, t_end)
             self.mu_prev = mu_prev
+        self.ref, self.v_prev, self.last_t, self.count = ref, v_prev, last_t, count
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
         return events
