@@ -37,6 +37,8 @@ MAX_SPP = 2**20
 #: Bytes a chunk holds per pixel and step: the float64 photocurrent, and 4 more per emulator (measured
 #: peaks over a 256-step chunk: 12.4 B with DVS alone, 24.9 B with all four, at 64x48 and 20000 steps a chunk).
 CHUNK_BYTES_BASE, CHUNK_BYTES_PER_EMULATOR = 8, 4
+#: ... and with ``crossings = "bridge"`` the noise-free signal and the total photocurrent (float32 each).
+CHUNK_BYTES_BRIDGE = 8
 #: A run's chunks, unless its config sets ``chunk_steps``, take this share of the memory the process may use
 #: (:func:`gevsim._resources.usable_memory`: installed memory, or ``ulimit -v`` where lower) ...
 CHUNK_MEMORY_FRACTION = 1 / 16
@@ -121,10 +123,15 @@ def chunk_budget_bytes() -> int:
     return CHUNK_MEMORY_CAP_BYTES if have is None else int(min(have * CHUNK_MEMORY_FRACTION, CHUNK_MEMORY_CAP_BYTES))
 
 
-def step_bytes(*, width: int, height: int, emulators: int, substeps: int = 1) -> int:
+def step_bytes(*, width: int, height: int, emulators: int, substeps: int = 1, bridge: bool = False) -> int:
     """Bytes one step of a chunk holds (:data:`CHUNK_BYTES_BASE` and :data:`CHUNK_BYTES_PER_EMULATOR` a pixel and
-    sub-step)."""
-    return int(width) * int(height) * int(substeps) * (CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR * int(emulators))
+    sub-step, and :data:`CHUNK_BYTES_BRIDGE` with the bridge rule)."""
+    per_px = CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR * int(emulators) + (CHUNK_BYTES_BRIDGE if bridge else 0)
+    return int(width) * int(height) * int(substeps) * per_px
+
+
+def _bridged(config: EmulationRequest) -> bool:
+    return getattr(config, "crossings", "samples") != "samples"
 
 
 def budget_chunk_steps(config: EmulationRequest, *, width: int, height: int, substeps: int = 1) -> int:
@@ -132,7 +139,8 @@ def budget_chunk_steps(config: EmulationRequest, *, width: int, height: int, sub
     :func:`chunk_budget_bytes`, at least 1 and at most :data:`MAX_CHUNK_STEPS` (chunks bound memory, not results)."""
     if config.chunk_steps is not None:
         return int(config.chunk_steps)
-    per_step = step_bytes(width=width, height=height, emulators=len(config.emulators), substeps=substeps)
+    per_step = step_bytes(width=width, height=height, emulators=len(config.emulators), substeps=substeps,
+                          bridge=_bridged(config))
     return max(1, min(MAX_CHUNK_STEPS, chunk_budget_bytes() // max(per_step, 1)))
 
 
@@ -144,8 +152,8 @@ def check_emulation(config: EmulationRequest, *, width: int, height: int, durati
     sensor's fastest noise path)."""
     steps = duration_s / config.step_s * substeps
     chunk_steps = budget_chunk_steps(config, width=width, height=height, substeps=substeps)
-    chunk = min(chunk_steps * substeps, steps) * int(width) * int(height) * (
-        CHUNK_BYTES_BASE + CHUNK_BYTES_PER_EMULATOR * len(config.emulators))
+    chunk = min(chunk_steps * substeps, steps) * step_bytes(width=width, height=height,
+                                                            emulators=len(config.emulators), bridge=_bridged(config))
     split = f" split into {substeps} sub-steps each" if substeps > 1 else ""
     size = f"{width}x{height} px x {len(config.emulators)} emulators"
     if config.chunk_steps is not None:

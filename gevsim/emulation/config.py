@@ -17,6 +17,7 @@ aps_exposure_s = 5e-4
 cold_start = false             # true: the sensor starts as if just switched on (no leak before 1 / rate)
 burn_in_s = 0.01               # the chain runs this long (whole lamp periods) before t = 0, events discarded
 footprint = "scene"            # "chip": the pixels are a centred window of the chip at its native pitch
+crossings = "samples"          # "bridge": the DVS finds crossings inside steps up to 2 ms (dvs only)
 
 [render]                       # overrides of the scene manifest's [render]
 width = 64
@@ -50,6 +51,7 @@ from typing import Any, TypeVar
 
 from gevsim._validate import FieldError
 from gevsim.config import FromTable, TomlReader, load_table, resolve_relative
+from gevsim.emulation.bridging import CROSSING_RULES
 from gevsim.emulation.emulators import EMULATORS, PARAMS, GradientConfig, SurroundConfig, check_emulator_list
 from gevsim.errors import ConfigError, check_keys
 from gevsim.render.manifest_checks import MAX_LUMINANCE_CD_M2
@@ -63,7 +65,7 @@ TABLES = ("emulation", "render", *(cls.TABLE for cls in PARAMS), "light", "senso
 #: photocurrent after the render.
 MAX_LIGHT_SCALE = MAX_LUMINANCE_CD_M2 / 1.0
 EMULATION_KEYS = ("scene", "sensor", "emulators", "seed", "duration_s", "step_s", "chunk_steps", "frame_rate_hz",
-                  "aps", "aps_exposure_s", "cold_start", "burn_in_s", "footprint")
+                  "aps", "aps_exposure_s", "cold_start", "burn_in_s", "footprint", "crossings")
 #: How long the pixel chain runs before t = 0 by default, rounded up to whole lamp periods (issue 34: with
 #: the DVS levels drawn from their stationary law, 10 ms settles the rest; docs/start-state.md measures it).
 BURN_IN_S = 0.01
@@ -104,6 +106,7 @@ class EmulationConfig:
     cold_start: bool = False  # True: every pixel starts as if just switched on (leak phase 0)
     burn_in_s: float = BURN_IN_S  # the chain runs this long before t = 0 (not with cold_start)
     footprint: str = "scene"  # "chip": a centred window of the chip at native pitch (gevsim.emulation.footprint)
+    crossings: str = "samples"  # "bridge": crossings between long steps (gevsim.emulation.bridging)
     render: dict = field(default_factory=dict)
     thresholds_ln: tuple[float, ...] = GradientConfig.thresholds_ln
     hysteresis_ln: float = GradientConfig.hysteresis_ln
@@ -130,8 +133,8 @@ class EmulationConfig:
         """The config as TOML (what an emulation file records; programmatic configs too)."""
         import tomli_w
 
-        em = {k: getattr(self, k) for k in ("scene", "sensor", "seed", "step_s", "chunk_steps", "frame_rate_hz",
-                                             "aps", "aps_exposure_s", "cold_start", "burn_in_s", "footprint")}
+        em = {k: getattr(self, k) for k in ("scene", "sensor", "seed", "step_s", "chunk_steps", "frame_rate_hz", "aps",
+                                             "aps_exposure_s", "cold_start", "burn_in_s", "footprint", "crossings")}
         if self.chunk_steps is None:  # from the memory budget: TOML has no None
             del em["chunk_steps"]
         em["emulators"] = list(self.emulators)
@@ -200,6 +203,7 @@ def load_config(path: str | Path) -> EmulationConfig:
         aps_exposure_s=float(r.number(em, "aps_exposure_s", "emulation", 5e-4, positive=True)),
         burn_in_s=float(r.number(em, "burn_in_s", "emulation", BURN_IN_S, minimum=0.0, maximum=MAX_BURN_IN_S)),
         footprint=check_footprint(em, r, "emulation"),
+        crossings=_crossings(em, r),
         render=dict(render),
         **emulator_params,
         sensor_overrides=dict(r.table(raw, "sensor")),
@@ -209,6 +213,14 @@ def load_config(path: str | Path) -> EmulationConfig:
         source=r.source,
         text=path.read_text(),
     )
+
+
+def _crossings(em: dict, r: TomlReader) -> str:
+    """emulation.crossings: a name of :data:`gevsim.emulation.bridging.CROSSING_RULES`."""
+    value = em.get("crossings", "samples")
+    if value not in CROSSING_RULES:
+        r.fail("emulation.crossings", f"expected one of {', '.join(map(repr, CROSSING_RULES))}, got {value!r}")
+    return str(value)
 
 
 def check_footprint(table: dict, r: TomlReader, where: str) -> str:
@@ -287,6 +299,13 @@ def check_consistency(config: EmulationConfig, *, duration_s: float) -> None:
             raise ConfigError(str(err), source=config.source, key=f"{cls.TABLE}.{err.field}") from None
     if config.aps and config.frame_rate_hz <= 0:
         raise ConfigError("aps = true needs frame_rate_hz > 0", source=config.source, key="emulation.aps")
+    if config.crossings != "samples":
+        others = [n for n in config.emulators if not EMULATORS[n].bridges]
+        if others or config.cold_start:
+            why = (f"the {', '.join(others)} emulator(s) take no bridge" if others
+                   else "it starts from a settled photoreceptor (cold_start = false)")
+            raise ConfigError(f"crossings = {config.crossings!r} is for the dvs emulator only so far: {why}",
+                              source=config.source, key="emulation.crossings")
     if config.aps and config.aps_exposure_s > 1.0 / max(config.frame_rate_hz, 1e-12):
         raise ConfigError("aps_exposure_s exceeds the frame period", source=config.source,
                           key="emulation.aps_exposure_s")

@@ -22,6 +22,7 @@ import numpy as np
 from gevsim import _portable as pm
 from gevsim._validate import real
 from gevsim.emulation import layout
+from gevsim.emulation.bridging import CROSSING_RULES, bridging_for
 from gevsim.emulation.config import EmulationConfig, check_consistency
 from gevsim.emulation.emulators import (
     APS_READ_SEED,
@@ -199,8 +200,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
     t = clock.lap("render", start)
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width
-    pr, start_state, emulators, readouts, aps, aps_rng = _chain(config, setup, grid_waveforms=grid_waveforms, sub=sub,
-                                                                chunk_steps=chunk)
+    pr, start_state, emulators, readouts, aps, aps_rng, bridging = _chain(config, setup, grid_waveforms=grid_waveforms,
+                                                                          sub=sub, chunk_steps=chunk)
     t = clock.lap("start", t)
     end_us = int(round(setup.duration_s * 1e6))
 
@@ -213,7 +214,7 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
              "flicker": flicker, "noise": noise, "variant": setup.variant.variant,
              "scene_toml": resolved_config(m), "emulators": list(emulators),
              "render_noise_json": json.dumps(setup.render_quality, default=float, sort_keys=True),
-             "start": start_state, "substeps": sub}
+             "start": start_state, "substeps": sub, "crossings": config.crossings}
     with EventWriter(out, width=w, height=h, config_toml=config.text or config.to_toml(), seed=config.seed,
                      extra_attrs=extra) as wr:
         for name, em in emulators.items():  # what reconstruction needs: theta, nominal contrast steps
@@ -225,7 +226,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
             write_frames(wr, setup, frame_t, dark, aps, aps_rng, config)
         t = clock.lap("ground_truth", t)
         t = stream_chunks(config, setup, wr, pr, emulators, readouts, grid_waveforms=grid_waveforms, sub=sub,
-                          chunk_steps=chunk, end_us=end_us, counts=counts, clock=clock, since=t, progress=progress)
+                          chunk_steps=chunk, end_us=end_us, counts=counts, clock=clock, since=t, progress=progress,
+                          bridging=bridging)
         readout = {EMULATORS[n].stream: r.summary() for n, r in readouts.items()}
         log_readouts(readout)
         t = clock.lap("readout", t)
@@ -247,7 +249,8 @@ def run(config: EmulationConfig, out: str | os.PathLike, *, cache_dir: str | os.
 def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub: int, chunk_steps: int) -> tuple:
     """The run's pixel chain, each part seeded by its slot of the run's seed sequence: the photoreceptor
     (settled unless a cold start), the emulators, their readouts (the sensor's bus share of the window),
-    and the APS sensor and its read-noise generator (or None)."""
+    the APS sensor and its read-noise generator (or None), and the crossing rule's noise-free twin
+    (:func:`~gevsim.emulation.bridging.bridging_for`, or None)."""
     preset, m = setup.preset, setup.manifest
     h, w = m.render.height, m.render.width
     seeds = np.random.SeedSequence(config.seed).spawn(SEED_SLOTS)
@@ -256,12 +259,13 @@ def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub:
     pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise, t0_s=-span,
                        rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]), cold_start=config.cold_start)
     start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s, chunk_steps=chunk_steps)
+    bridging = None if config.cold_start else bridging_for(config.crossings, pr)
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}
     if span > 0:
         burn_in(pr, emulators, setup, span_s=span, step_s=config.step_s, sub=sub, chunk_steps=chunk_steps,
-                grid_waveforms=grid_waveforms, periodic=period is not None)
+                grid_waveforms=grid_waveforms, periodic=period is not None, bridging=bridging)
         start_state += f"; the chain burnt in for {span * 1e3:.6g} ms before t = 0 (events discarded)"
     readout_key = np.random.default_rng(seeds[READOUT_SEED]).integers(0, 2**62)
     bus = chip_share(preset.readout, emulated_px=h * w, chip_px=preset.width * preset.height)
@@ -271,23 +275,27 @@ def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub:
     aps = (ApsSensor((h, w), preset.aps, rng=np.random.default_rng(seeds[APS_SEED]))
            if config.aps and preset.aps is not None else None)  # prepare() refused aps without [aps]
     aps_rng = np.random.default_rng(seeds[APS_READ_SEED]) if config.aps else None
-    return pr, start_state, emulators, readouts, aps, aps_rng
+    return pr, start_state, emulators, readouts, aps, aps_rng, bridging
 
 
 def substeps(config: EmulationConfig, setup: Setup) -> int:
     """How many equal sub-steps each configured step needs so that the sensor's fastest noise path
-    is resolved (noise-event rates then do not depend on the step, within ~10 %); 1 when the step
-    is fine enough or the sensor sets no bound."""
+    is resolved (noise-event rates then do not depend on the step, within ~10 %), or, with a crossing rule
+    that finds crossings between samples, so that no step is longer than the rule is validated at; 1 when
+    the step is fine enough or the sensor sets no bound."""
     from gevsim.pixel.noise import coarsest_step_s
 
     t = np.linspace(0.0, setup.duration_s, 2001)
     peak = np.max(weights_at(setup.waveforms, t), axis=0)  # each group's brightest moment
     basis = setup.current_basis.max(axis=0)  # (K, H, W): each group's brightest pose
     brightest = float(np.max(pm.weighted_sum(peak[None, :], basis.reshape(len(basis), -1))))
-    limit = coarsest_step_s(setup.preset.photoreceptor, setup.preset.noise, brightest)
+    limit = CROSSING_RULES[config.crossings]
+    why = f"crossings = {config.crossings!r} is validated to"
+    if limit is None:
+        limit = coarsest_step_s(setup.preset.photoreceptor, setup.preset.noise, brightest)
+        why = f"the {setup.preset.name} pixel's fastest noise path allows"
     if limit is None or config.step_s <= limit * (1 + 1e-9):
         return 1
     k = int(np.ceil(config.step_s / limit - 1e-9))
-    log.info("step_s = %g s is coarser than the %s pixel's fastest noise path allows (%.3g s): %d sub-steps "
-             "per step", config.step_s, setup.preset.name, limit, k)
+    log.info("step_s = %g s is coarser than %s (%.3g s): %d sub-steps per step", config.step_s, why, limit, k)
     return k

@@ -114,6 +114,8 @@ class Emulator:
         else the linear frames).
     thresholds : ``thresholds(emulator, preset)``: what the emulation file stores under
         ``/thresholds/<name>`` for reconstruction, or None for nothing.
+    bridges : its ``process`` takes a ``bridge`` (crossings between long steps, ``crossings = "bridge"``:
+        :mod:`gevsim.emulation.bridging`).
     """
 
     stream: str
@@ -129,6 +131,7 @@ class Emulator:
     build_frames: Callable[..., Any] | None = None
     log_input: bool = False
     thresholds: Callable[[Any, Any], np.ndarray] | None = None
+    bridges: bool = False
 
 
 def _dvs(shape, *, config, preset, rng):
@@ -177,7 +180,7 @@ def _gradient_frames(rc: bool):
 #: Event emulators by the name used in configs, in the order they run and are reported.
 EMULATORS: dict[str, Emulator] = {
     "dvs": Emulator("events", 1, _dvs, "tab:red", "DVS", "brightness", headline="baseline",
-                    build_frames=_dvs_frames, log_input=True, thresholds=_dvs_nominal),
+                    build_frames=_dvs_frames, log_input=True, thresholds=_dvs_nominal, bridges=True),
     "gradient": Emulator("gradient_events", 2, _gradient(False), "tab:blue", "gradient", "gradient", GradientConfig,
                          headline="candidate", decodes=True, build_frames=_gradient_frames(False), thresholds=_theta),
     "gradient_rc": Emulator("gradient_rc_events", 3, _gradient(True), "tab:cyan", "gradient RC", "gradient",

@@ -19,6 +19,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from gevsim.emulation.bridging import Bridging, process_kwargs
+from gevsim.emulation.emulators import EMULATORS
 from gevsim.emulation.photocurrent import Setup, photocurrent_at
 from gevsim.illumination import weights_at
 from gevsim.pixel import Photoreceptor
@@ -119,7 +121,7 @@ def start_levels(pr: Photoreceptor, emulators: Iterable) -> None:
 
 
 def burn_in(pr: Photoreceptor, emulators: dict, setup: Setup, *, span_s: float, step_s: float, sub: int,
-            chunk_steps: int, grid_waveforms: tuple, periodic: bool) -> None:
+            chunk_steps: int, grid_waveforms: tuple, periodic: bool, bridging: Bridging | None = None) -> None:
     """Run ``pr`` (created with ``t0_s = -span_s`` and settled) and the ``emulators`` over (-span_s, 0] on the
     settled signal, events discarded (each DVS level first drawn from its stationary law given the noise,
     :meth:`~gevsim.events.BrightnessEmulator.start_from_noise`; the burn-in settles what that law leaves out:
@@ -127,7 +129,8 @@ def burn_in(pr: Photoreceptor, emulators: dict, setup: Setup, *, span_s: float, 
     (``periodic``: their waveforms, whole periods;
     else held at the first step's) with the poses of t = 0. Each emulator that decodes from a start state
     has it set at t = 0 (``mark_start``). The steps are split at ``grid_waveforms``' jumps (the flicker
-    run's lamps: its counterfactuals step, and draw their noise, alike)."""
+    run's lamps: its counterfactuals step, and draw their noise, alike). ``bridging``: the crossing rule's
+    noise-free twin, stepped alike (its bridges go to the emulators that take them)."""
     start_levels(pr, emulators.values())
     n_steps = max(1, math.ceil(span_s / step_s - 1e-9))
     grid = span_s / n_steps * np.arange(1, n_steps + 1)  # (0, span]: the burn-in shifted by +span
@@ -146,8 +149,9 @@ def burn_in(pr: Photoreceptor, emulators: dict, setup: Setup, *, span_s: float, 
         t_run = t_end - span_s
         t_run[-1] = 0.0 if b == n_steps else t_run[-1]
         v = pr.process(current, t_run)
-        for em in emulators.values():
-            em.process(v, t_run)
+        bridge = bridging.bridge(current, t_run) if bridging is not None else None
+        for name, em in emulators.items():
+            em.process(v, t_run, **process_kwargs(EMULATORS[name].bridges, bridge))
     for em in emulators.values():
         if hasattr(em, "mark_start"):
             em.mark_start()

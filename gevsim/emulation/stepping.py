@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from gevsim.emulation import layout
+from gevsim.emulation.bridging import Bridging, process_kwargs
 from gevsim.emulation.config import EmulationConfig
 from gevsim.emulation.emulators import EMULATORS
 from gevsim.emulation.photocurrent import Setup
@@ -63,9 +64,11 @@ class StageClock:
 
 def stream_chunks(config: EmulationConfig, setup: Setup, wr: EventWriter, pr: Photoreceptor, emulators: dict,
                   readouts: dict, *, grid_waveforms: tuple, sub: int, chunk_steps: int, end_us: int, counts: dict,
-                  clock: StageClock, since: float, progress: Callable[[int, int], None] | None) -> float:
+                  clock: StageClock, since: float, progress: Callable[[int, int], None] | None,
+                  bridging: Bridging | None = None) -> float:
     """Step the chain over the run in chunks of ``chunk_steps`` steps and append each stream's events to ``wr``
-    (counting them in ``counts``), timing each stage on ``clock`` from ``since``; returns the last lap's end."""
+    (counting them in ``counts``), timing each stage on ``clock`` from ``since``; returns the last lap's end.
+    ``bridging``: the crossing rule's noise-free twin (its time counts to the photoreceptor's)."""
     n_steps = config.time.steps(setup.duration_s)
     t_end_all = config.step_s * np.arange(1, n_steps + 1)
     chunks = range(0, n_steps, chunk_steps)
@@ -77,11 +80,12 @@ def stream_chunks(config: EmulationConfig, setup: Setup, wr: EventWriter, pr: Ph
         current = held_photocurrent(setup, t0, t_end)
         t = clock.lap("mix", t)
         v = pr.process(current, t_end)
+        bridge = bridging.bridge(current, t_end) if bridging is not None else None
         del current  # before the emulators' buffers: a chunk's photocurrent and output are its largest arrays
         t = clock.lap("photoreceptor", t)
         until = None if b == n_steps else math.floor(t_end[-1] * 1e6)
         for name, em in emulators.items():
-            made = em.process(v, t_end)
+            made = em.process(v, t_end, **process_kwargs(EMULATORS[name].bridges, bridge))
             t = clock.lap(name, t)
             events = readouts[name].process(made, end_us=end_us, until_us=until)
             t = clock.lap("readout", t)
