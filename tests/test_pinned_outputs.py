@@ -67,8 +67,10 @@ PINS = {
     "reconstruct.sor_rc": "bb63bd2e69e1c08eca1f16872604994330592002ef863103ab74dce4eb97fc6e",
     "reconstruct.direct": "55b8d418c891ccedf23674cd57c5e3f071e5409d1b3fa49f765ae3fc54485712",
     "reconstruct.high_pass": "19e50610e38aec048a5f75ae014603524b2989dad6cf9eb0929393e9ab4bcb29",
-    "driver_one_pose.h5": "c62de81b73b616b78019da72c0b78dbf2098b5d17e4063e11984992640d3fb7f",
-    "driver.h5": "83b6acca8e87811e0a9a051fdc6aaec6238ec720a0a76c20fd1f0a38f840ae9d",
+    # 2026-11-27: the files gained the attribute "crossings"; their events did not change (with that attribute
+    # left out of the hash, the earlier pins 83b6acca8e87... and c62de81b73b6... still hold).
+    "driver_one_pose.h5": "42f40a0e80ec62bece9d3f7523075138c82e4cc442affcf99afe5fc069511d63",
+    "driver.h5": "1e30d980b9ac20d3c3251b7dc9c011176e8f08c626943caa91857b681843bab6",
 }
 
 

@@ -72,6 +72,36 @@ def _gather(first, hi, busy, v_t, mu_t, itot_t, v_prev, mu_prev, d0, d_end, th_o
     return m
 
 
+@njit(inline="always")
+def _decide(m, first, dt, beta, us_last, bridge_key, lv, la, x0, x1, sx0, sx1, g, eb, c, cp, mom, share, total,
+            lane_idx, force_s, force_pol, busy):
+    """For the m lanes of :func:`_gather`: each side's crossing probability over the step (ON: up through g[0..1],
+    OFF: the negated noise up through g[2..3]), one keyed uniform per pixel to decide which side (if either)
+    crosses and another to place it; a pixel that crosses is marked busy with its forced crossing."""
+    node_exps(beta, dt, eb)
+    lanes(lv, la, m, beta, dt, eb, c, cp, mom, total[0])
+    side(x0, x1, g[0], g[1], m, dt, mom, share[0], total[0])
+    for i in range(m):
+        sx0[i] = -x0[i]
+        sx1[i] = -x1[i]
+    side(sx0, sx1, g[2], g[3], m, dt, mom, share[1], total[1])
+    fire_key = stream_key(bridge_key, us_last, 0)
+    time_key = stream_key(bridge_key, us_last, 1)
+    for i in range(m):
+        s_idx = lane_idx[i]
+        p = first + s_idx
+        p_on = probability(total[0, i])
+        u = _uniform(fire_key, p)
+        if u < p_on:
+            force_s[s_idx] = when(share[0], i, total[0, i], _uniform(time_key, p))
+            force_pol[s_idx] = 1
+            busy[s_idx] = True
+        elif u < p_on + probability(total[1, i]):
+            force_s[s_idx] = when(share[1], i, total[1, i], _uniform(time_key, p))
+            force_pol[s_idx] = -1
+            busy[s_idx] = True
+
+
 @njit(parallel=True, nogil=True, cache=True, error_model="numpy", fastmath={"nnan", "ninf"})
 def brightness_bridged(v, mu, itot, t_start, t_end, us_end, ref, v_prev, mu_prev, last_t, count, th_on, th_off,
                        leak, leak_light, refractory, reset_sigma, key, bridge_key, law, px_x, px_y, buf_t, buf_x,
@@ -127,29 +157,8 @@ def brightness_bridged(v, mu, itot, t_start, t_end, us_end, ref, v_prev, mu_prev
                 m = _gather(first, hi, busy, v[t, first:hi], mu[t, first:hi], itot[t, first:hi], v_prev, mu_prev,
                             d0, d_end, th_on, th_off, law, lv, la, lane_idx, x0, x1, g, FAR_SD)
                 if m:
-                    node_exps(beta, dt, eb)
-                    lanes(lv, la, m, beta, dt, eb, c, cp, mom, total[0])
-                    side(x0, x1, g[0], g[1], m, dt, mom, share[0], total[0])
-                    for i in range(m):
-                        sx0[i] = -x0[i]
-                        sx1[i] = -x1[i]
-                    side(sx0, sx1, g[2], g[3], m, dt, mom, share[1], total[1])
-                    fire_key = stream_key(bridge_key, us_end[t], 0)
-                    time_key = stream_key(bridge_key, us_end[t], 1)
-                    for i in range(m):
-                        s_idx = lane_idx[i]
-                        p = first + s_idx
-                        p_on = probability(total[0, i])
-                        p_off = probability(total[1, i])
-                        u = _uniform(fire_key, p)
-                        if u < p_on:
-                            force_s[s_idx] = when(share[0], i, total[0, i], _uniform(time_key, p))
-                            force_pol[s_idx] = 1
-                            busy[s_idx] = True
-                        elif u < p_on + p_off:
-                            force_s[s_idx] = when(share[1], i, total[1, i], _uniform(time_key, p))
-                            force_pol[s_idx] = -1
-                            busy[s_idx] = True
+                    _decide(m, first, dt, beta, us_end[t], bridge_key, lv, la, x0, x1, sx0, sx1, g, eb, c, cp, mom,
+                            share, total, lane_idx, force_s, force_pol, busy)
                 for q in range(_compact(busy, hi - first, idx)):
                     i = idx[q]
                     p = first + i

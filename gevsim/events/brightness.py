@@ -23,7 +23,6 @@ from gevsim.events import _bridge_dvs, _kernels
 from gevsim.events._runner import EventBlocks, SampledSignal
 from gevsim.events.bridge import Bridge
 from gevsim.events.types import BRIGHTNESS_DTYPE, empty
-from gevsim.pixel._kernels import mix64
 from gevsim.pixel.params import REFERENCE_TEMPERATURE_K, EventParams, thermal_factor
 
 
@@ -95,7 +94,8 @@ class BrightnessEmulator:
         self.ref = np.zeros(n)
         self.v_prev = np.zeros(n)
         self.mu_prev: np.ndarray | None = None  # the noise-free signal at the last sample (bridged steps only)
-        self.bridge_key = np.uint64(mix64(self.reset_key ^ np.uint64(0xB41D6E5C0FFEE)))  # keys the bridge's draws
+        # keys the crossing rule's draws (a Weyl step from the reset key: no draw of rng, so nothing else moves)
+        self.bridge_key = np.uint64((int(self.reset_key) + 0x9E3779B97F4A7C15) % 2**64)
         self.last_t = np.full(n, -np.inf)
         self.count = np.zeros(n, np.int64)
         self._px_y, self._px_x = (a.ravel().astype(np.int16) for a in np.indices(self.shape))
