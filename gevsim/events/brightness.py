@@ -150,6 +150,7 @@ class BrightnessEmulator:
                 _kernels.brightness(flat[a:b], t_start[a:b], t_end[a:b], us_end, *head, self._px_x, self._px_y,
                                     buf_t, buf_x, buf_y, buf_p, region, order)
             events = self.blocks.collect(kernel, t_start, t_end)
+            self.mu_prev = None  # unknown after steps without a bridge: the next bridged step takes the noise as 0
         else:
             mu, itot = bridge.arrays(v.shape, first)
             mu_prev = mu[0].astype(np.float64) if first else (v_prev if self.mu_prev is None else self.mu_prev).copy()
