@@ -48,15 +48,20 @@ class Bridging:
 
 def bridging_for(rule: str, pr: Photoreceptor) -> Bridging | None:
     """The run's :class:`Bridging` for crossing rule ``rule``, or None: the ``samples`` rule, or a photoreceptor
-    without temporal noise (nothing crosses between two samples of a noise-free signal that the straight line
-    between them misses: its path is the straight line's only where it is smooth, which the rules of the
-    sub-steps already assume)."""
+    without temporal noise (its signal between two samples is the noise-free path, which the comparators
+    already follow as the straight line between them, as with the ``samples`` rule). Raises ValueError for a
+    noisy photoreceptor without an output pole (a single pole's noise has no crossing rate)."""
     if CROSSING_RULES.get(rule, "?") is None:
         return None
     if rule not in CROSSING_RULES:
         raise ValueError(f"unknown crossing rule {rule!r}; known: {', '.join(CROSSING_RULES)}")
     law = pr.noise_law()
-    if law is None or (law.shot_q <= 0.0 and law.amp_ln2_hz <= 0.0 and law.read_var_ln2 <= 0.0):
+    if law is None:
+        if pr.shot_q > 0.0 or pr.amp_ln2_hz > 0.0 or pr.n_read:
+            raise ValueError(f"crossings = {rule!r} needs a photoreceptor with an output pole (second_pole_hz): "
+                             "without one its noise has no crossing rate")
+        return None
+    if law.shot_q <= 0.0 and law.amp_ln2_hz <= 0.0 and law.read_var_ln2 <= 0.0:
         return None
     return Bridging(pr)
 

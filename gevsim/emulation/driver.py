@@ -259,7 +259,10 @@ def _chain(config: EmulationConfig, setup: Setup, *, grid_waveforms: tuple, sub:
     pr = Photoreceptor((h, w), params=preset.photoreceptor, noise=preset.noise, t0_s=-span,
                        rng=np.random.default_rng(seeds[PHOTORECEPTOR_SEED]), cold_start=config.cold_start)
     start_state = "cold" if config.cold_start else settle(pr, setup, config.step_s, chunk_steps=chunk_steps)
-    bridging = None if config.cold_start else bridging_for(config.crossings, pr)
+    try:
+        bridging = None if config.cold_start else bridging_for(config.crossings, pr)
+    except ValueError as exc:
+        raise ConfigError(str(exc), source=config.source, key="emulation.crossings") from None
     emulators = {name: make_emulator(name, (h, w), config=config, preset=preset,
                                      rng=np.random.default_rng(seeds[entry.seed_slot]))
                  for name, entry in EMULATORS.items() if name in config.emulators}

@@ -171,3 +171,23 @@ def test_bad_crossing_configs_exit_2(tmp_path, capsys, kwargs, text):
     assert main(["emulate", str(path), "--out", str(tmp_path / "x.h5"), "--cache", str(tmp_path / "c"), "-q"]) == 2
     err = capsys.readouterr().err
     assert text in err and "emulation.crossings" in err and "Traceback" not in err
+
+
+def test_a_noisy_photoreceptor_without_an_output_pole_is_refused(preset):
+    """The rule needs the output pole (a single pole's noise has no crossing rate); a noise-free one needs no
+    twin."""
+    import dataclasses
+
+    from gevsim.emulation.bridging import bridging_for
+    from gevsim.pixel import Photoreceptor
+
+    params = dataclasses.replace(preset.photoreceptor, second_pole_hz=None)
+    pr = Photoreceptor(SHAPE, params=params, noise=preset.noise, rng=np.random.default_rng(0))
+    pr.settle(np.full((1, *SHAPE), photocurrent_a(preset, 1.0)), np.full(1, REF_STEP_S))
+    with pytest.raises(ValueError, match="output pole"):
+        bridging_for("bridge", pr)
+    assert bridging_for("samples", pr) is None
+    ideal = load_preset("ideal")
+    quiet = Photoreceptor(SHAPE, params=ideal.photoreceptor, noise=ideal.noise, rng=np.random.default_rng(0))
+    quiet.settle(np.full((1, *SHAPE), photocurrent_a(ideal, 1.0)), np.full(1, REF_STEP_S))
+    assert bridging_for("bridge", quiet) is None
