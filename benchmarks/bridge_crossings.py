@@ -103,19 +103,11 @@ def bridge_path(pr, dvs, light, t0: float, h: float, steps: int, seed: int, *, v
             p_on, p_off, _, _ = crossings(x0, x1, (on - d0, on - d1), (off + d0, off + d1), h, var_k, rate_k, beta)
             RULE_S[0] += time.perf_counter() - tick
             RULE_S[1] += n
-            u = rng.random(n)
-            fire_on = u < p_on
-            fire_off = ~fire_on & (u < p_on + p_off)
-            counts += fire_on | fire_off
-            d1 = np.where(fire_on, d1 - on, np.where(fire_off, d1 + off, d1))
-            d1 = d1 - reset * rng.standard_normal(n) * (fire_on | fire_off)
-            ref = y1 - d1
-            y0 = y1
-            continue
-        b_on, b_off = on + shift, off + shift
-        spread = scale / 2.0 if variant == "ou" else diffusion * h
-        p_on = np.exp(-2.0 * np.maximum(b_on - d0, 0.0) * np.maximum(b_on - d1, 0.0) / spread)
-        p_off = np.exp(-2.0 * np.maximum(b_off + d0, 0.0) * np.maximum(b_off + d1, 0.0) / spread)
+        else:
+            b_on, b_off = on + shift, off + shift
+            spread = scale / 2.0 if variant == "ou" else diffusion * h
+            p_on = np.exp(-2.0 * np.maximum(b_on - d0, 0.0) * np.maximum(b_on - d1, 0.0) / spread)
+            p_off = np.exp(-2.0 * np.maximum(b_off + d0, 0.0) * np.maximum(b_off + d1, 0.0) / spread)
         u = rng.random(n)
         fire_on = u < p_on
         fire_off = ~fire_on & (u < p_on + p_off)

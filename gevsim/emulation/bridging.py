@@ -51,10 +51,10 @@ def bridging_for(rule: str, pr: Photoreceptor) -> Bridging | None:
     without temporal noise (its signal between two samples is the noise-free path, which the comparators
     already follow as the straight line between them, as with the ``samples`` rule). Raises ValueError for a
     noisy photoreceptor without an output pole (a single pole's noise has no crossing rate)."""
-    if CROSSING_RULES.get(rule, "?") is None:
-        return None
     if rule not in CROSSING_RULES:
         raise ValueError(f"unknown crossing rule {rule!r}; known: {', '.join(CROSSING_RULES)}")
+    if CROSSING_RULES[rule] is None:
+        return None
     law = pr.noise_law()
     if law is None:
         if pr.shot_q > 0.0 or pr.amp_ln2_hz > 0.0 or pr.n_read:

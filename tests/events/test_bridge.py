@@ -33,6 +33,17 @@ def far(n):
     return np.full(n, 1e3), np.full(n, 1e3)
 
 
+def random_samples(law, n, gap_low_sd, gap_high_sd, seed):
+    """n pairs of samples of ``law``'s noise (independent, each of its stationary spread) and n pairs of gaps
+    uniform in [gap_low_sd, gap_high_sd) standard deviations, and the standard deviation."""
+    var, _ = LAWS[law]
+    rng = np.random.default_rng(seed)
+    sd = math.sqrt(sum(var))
+    x0, x1 = sd * rng.standard_normal(n), sd * rng.standard_normal(n)
+    g0, g1 = sd * rng.uniform(gap_low_sd, gap_high_sd, n), sd * rng.uniform(gap_low_sd, gap_high_sd, n)
+    return x0, x1, g0, g1, sd
+
+
 @pytest.mark.parametrize("law, step_s, level_sd, fall_sd", [
     ("slow", 1e-3, 1.0, 0.0), ("mid", 2.5e-4, 1.0, 0.0), ("mid", 1e-3, 2.0, 0.0), ("mid", 1e-3, 2.0, 1.0),
     ("fast", 2.5e-4, 1.0, 0.0), ("fast", 1e-3, 2.0, 0.0)])
@@ -79,11 +90,8 @@ def test_symmetries():
     quadrature's accuracy (16 nodes: 7 % where a sample lies within 0.1 sigma of its level); a larger gap never
     raises it."""
     var, rate = LAWS["mid"]
-    rng = np.random.default_rng(3)
     n = 400
-    sd = math.sqrt(sum(var))
-    x0, x1 = sd * rng.standard_normal(n), sd * rng.standard_normal(n)
-    g0, g1 = sd * rng.uniform(0.05, 3.0, n), sd * rng.uniform(0.05, 3.0, n)
+    x0, x1, g0, g1, sd = random_samples("mid", n, 0.05, 3.0, seed=3)
     vk, rk = columns(var, n), columns(rate, n)
     p_on, p_off, _, _ = crossings(x0, x1, (g0, g1), (g0, g1), 5e-4, vk, rk, B)
     q_on, q_off, _, _ = crossings(-x0, -x1, (g0, g1), (g0, g1), 5e-4, vk, rk, B)
@@ -99,11 +107,8 @@ def test_skipped_sides_are_negligible():
     below 1e-9: integrating every side changes nothing above that."""
     from gevsim.events import _bridge
     var, rate = LAWS["fast"]
-    rng = np.random.default_rng(4)
     n = 2000
-    sd = math.sqrt(sum(var))
-    x0, x1 = sd * rng.standard_normal(n), sd * rng.standard_normal(n)
-    g0, g1 = sd * rng.uniform(0.0, 15.0, n), sd * rng.uniform(0.0, 15.0, n)
+    x0, x1, g0, g1, _ = random_samples("fast", n, 0.0, 15.0, seed=4)
     args = (x0, x1, g0, g1, g1, g0, 5e-4, columns(var, n), columns(rate, n), B)
     outs = []
     for far_sd in (_bridge.Z_SKIP, 1e9):
