@@ -105,6 +105,13 @@ def _offsets(items, first_item, out_start, us_lo, us_hi, hist):
                     run += c
 
 
+@njit(nogil=True, cache=True)
+def _stable_rank(keys):
+    """np.argsort(keys, kind="mergesort"), compiled once here rather than inside :func:`_scatter`'s parallel loop
+    (which compiled ~2x slower with it)."""
+    return np.argsort(keys, kind="mergesort")
+
+
 @njit(parallel=True, nogil=True, cache=True)
 def _scatter(buf_t, buf_x, buf_y, buf_p, buf_axis, region, items, order, out_start, us_lo, hist, x, y, t, p, axis):
     for j in prange(order.shape[0]):
@@ -130,7 +137,7 @@ def _scatter(buf_t, buf_x, buf_y, buf_p, buf_axis, region, items, order, out_sta
                     src[m] = k
                     keys[m] = buf_t[k]
                     m += 1
-            rank = np.argsort(keys, kind="mergesort")
+            rank = _stable_rank(keys)
             for m in range(n):
                 _put(src[rank[m]], o + m, buf_t, buf_x, buf_y, buf_p, buf_axis, x, y, t, p, axis)
 

@@ -37,7 +37,7 @@ CELLS = 128
 ITERATIONS = 4
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _gauss_row(z0, dz, scale, out):
     """out[k] += scale exp(-(z0 + k dz)^2 / 2) for every cell k, with three exponentials in all: from the
     cell nearest the peak outwards, each value is the last times a ratio, and each ratio the last times
