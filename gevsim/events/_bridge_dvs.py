@@ -44,7 +44,7 @@ def _uniform(skey, p):
     return np.float64(mix64(skey + np.uint64(p) * GOLDEN) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@njit(inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"nnan", "ninf"})
 def _gather(first, hi, busy, v_t, mu_t, itot_t, v_prev, mu_prev, d0, d_end, th_on, th_off, law, lv, la, idx, x0,
             x1, g, far_sd):
     """The quiet pixels of [first, hi) (not busy) whose levels are within the noise's reach, as lanes: their
@@ -72,7 +72,7 @@ def _gather(first, hi, busy, v_t, mu_t, itot_t, v_prev, mu_prev, d0, d_end, th_o
     return m
 
 
-@njit(inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"nnan", "ninf"})
 def _decide(m, first, dt, beta, us_last, bridge_key, lv, la, x0, x1, sx0, sx1, g, eb, c, cp, mom, share, total,
             lane_idx, force_s, force_pol, busy):
     """For the m lanes of :func:`_gather`: each side's crossing probability over the step (ON: up through g[0..1],
