@@ -17,15 +17,17 @@ the paper's thresholds {4, 8, 16}/255 apply.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from gevsim._validate import real, real_list
-from gevsim.events import _kernels
+from gevsim.events import _bridge_gradient, _kernels
 from gevsim.events._kernels import EVENT_TABLE
 from gevsim.events._runner import EventBlocks, SampledSignal
+from gevsim.events.bridge import Bridge
 from gevsim.events.types import AXIS_X, AXIS_Y, GRADIENT_DTYPE, check_events, empty, is_gradient
 
 PAPER_THRESHOLDS = (4 / 255, 8 / 255, 16 / 255)
@@ -151,6 +153,10 @@ class GradientEmulator:
         self.hysteresis = real(hysteresis_ln, "hysteresis_ln", low=0.0, high=float(base.min()), high_open=True)
         self.g_prev = np.zeros((2,) + self.shape)
         self.state = np.zeros((2,) + self.shape, np.int8)
+        self.x_last: np.ndarray | None = None  # the noise at the last sample (bridged steps only)
+        # Keys the crossing rule's draws: a hash of the comparators' random thresholds and offsets (no draw from rng).
+        digest = hashlib.sha256(self.theta.tobytes() + self.offset.tobytes()).digest()
+        self.bridge_key = np.uint64(int.from_bytes(digest[:8], "little"))
         self.blocks = EventBlocks(self.shape[0], dtype=self.dtype,
                                   first_per_step=self.shape[1] / 4, min_free=self.shape[1], run=8)
 
@@ -168,12 +174,17 @@ class GradientEmulator:
         """Take the present ternary state as :attr:`initial_state` (a run's t = 0 after a burn-in)."""
         self.initial_state = self.state.copy()
 
-    def process(self, signal: ArrayLike, t_s: ArrayLike) -> np.ndarray:
+    def process(self, signal: ArrayLike, t_s: ArrayLike, *, bridge: Bridge | None = None) -> np.ndarray:
         """Events sorted by time from samples ``signal`` (T, H, W) at times ``t_s``.
 
         The first sample sets the initial ternary state (no events); see
-        :attr:`initial_state` to decode from it.
+        :attr:`initial_state` to decode from it. With ``bridge`` (:class:`gevsim.events.bridge.Bridge`), a
+        comparator may also leave its state and come back between two samples, or cross its level more often
+        than once, with the probabilities of :mod:`gevsim.events._bridge_gradient` (long steps; no hysteresis).
+        The first bridged step after steps without it takes the noise at its first sample as 0.
         """
+        if bridge is not None and self.hysteresis > 0.0:
+            raise ValueError(f"the crossing rule needs hysteresis_ln = 0, got {self.hysteresis!r}")
         v, t_start, t_end, first = self.clock.steps(signal, t_s, name="signal")
         if len(t_end) == 0:
             return empty(self.dtype)
@@ -183,12 +194,26 @@ class GradientEmulator:
             g_prev = np.stack([gx, gy]) - self.offset
             state = self.ternary_of(v[0])
             self.initial_state = state.copy()
-            v, t_start, t_end = v[1:], t_start[1:], t_end[1:]
+        steps = v[1:] if first else v
+        t_start, t_end = (t_start[1:], t_end[1:]) if first else (t_start, t_end)
+        if bridge is None:
+            def kernel(a, b, us_end, *bufs_and_region):
+                _kernels.gradient(steps[a:b], t_start[a:b], t_end[a:b], us_end, g_prev, state, self.theta, self.offset,
+                                  self.hysteresis, self.rc, self.interpolate, EVENT_TABLE, *bufs_and_region)
+            self.x_last = None
+        else:
+            mu, itot = bridge.arrays(v.shape, first)
+            mu, itot = mu.reshape(v.shape), itot.reshape(steps.shape)
+            noise = np.asarray(v, np.float64) - mu
+            x_prev = noise[0] if first else (np.zeros(self.shape) if self.x_last is None else self.x_last)
+            mu = mu[1:] if first else mu
+            law = bridge.law.as_tuple()
 
-        def kernel(a, b, us_end, *bufs_and_region):
-            _kernels.gradient(v[a:b], t_start[a:b], t_end[a:b], us_end, g_prev, state, self.theta, self.offset,
-                              self.hysteresis, self.rc, self.interpolate, EVENT_TABLE, *bufs_and_region)
-
+            def kernel(a, b, us_end, *bufs_and_region):
+                _bridge_gradient.gradient_bridged(steps, mu, itot, x_prev, a, t_start[a:b], t_end[a:b], us_end,
+                                                  g_prev, state, self.theta, self.offset, self.rc, self.interpolate,
+                                                  EVENT_TABLE, law, self.bridge_key, *bufs_and_region)
+            self.x_last = noise[-1]
         events = self.blocks.collect(kernel, t_start, t_end)
         self.g_prev, self.state = g_prev, state
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
