@@ -192,35 +192,40 @@ def _decide(n, h, beta, lv, la, sx, gap, on, cross, eb, c, cp, mom, fwd, rev, to
 
 
 @njit(cache=True, error_model="numpy", fastmath={"nnan", "ninf"})
-def _write(n, lane, count, fwd, rev, pol, axis, y, step_x, cid0, ta, dt, us_last, bridge_key, outs, buf_t, buf_x,
-           buf_y, buf_p, buf_axis, at):
-    """The excursions' events (out and back, each at a keyed draw) into the buffers from ``at``; returns the new
-    fill."""
+def _write(n, lane, count, fwd, rev, pol, axis, y, step_x, cid0, ta, dt, us_last, bridge_key, outs, sides, buf_t,
+           buf_x, buf_y, buf_p, buf_axis, at):
+    """The excursions' events into the buffers from ``at``; returns the new fill. Each lane's out-crossings (both
+    sides) are drawn and sorted; each return is drawn after its out-crossing and before the next one (G cannot be
+    above +Theta and below -Theta at once, and the events then decode to the comparator's state)."""
     for i in range(n):
         x = lane[i] * step_x
         cid = cid0 + x
+        k = 0
         for side in range(2):
-            k = count[side, i]
-            for j in range(k):  # out-crossings, sorted
+            for j in range(count[side, i]):
                 u = _uniform(stream_key(bridge_key, us_last, 2 + 2 * (side * MAX_EXCURSIONS + j)), cid)
                 s = _pick(fwd[side], i, 0.0, u)
-                r = j
+                r = k
                 while r > 0 and outs[r - 1] > s:
                     outs[r] = outs[r - 1]
+                    sides[r] = sides[r - 1]
                     r -= 1
                 outs[r] = s
-            for j in range(k):
-                u = _uniform(stream_key(bridge_key, us_last, 3 + 2 * (side * MAX_EXCURSIONS + j)), cid)
-                back = _pick(rev[side], i, outs[j], u)
-                if j + 1 < k:
-                    back = min(back, outs[j + 1])
-                for s in (outs[j], back):
-                    buf_t[at] = min(np.int64(math.floor((ta + s * dt) * 1e6 + 0.5)), us_last)
-                    buf_x[at] = x
-                    buf_y[at] = y
-                    buf_p[at] = pol[side, i]
-                    buf_axis[at] = axis
-                    at += 1
+                sides[r] = side
+                k += 1
+        for j in range(k):
+            side = sides[j]
+            u = _uniform(stream_key(bridge_key, us_last, 3 + 2 * (side * MAX_EXCURSIONS + j)), cid)
+            back = _pick(rev[side], i, outs[j], u)
+            if j + 1 < k:
+                back = min(back, outs[j + 1])
+            for s in (outs[j], back):
+                buf_t[at] = min(np.int64(math.floor((ta + s * dt) * 1e6 + 0.5)), us_last)
+                buf_x[at] = x
+                buf_y[at] = y
+                buf_p[at] = pol[side, i]
+                buf_axis[at] = axis
+                at += 1
     return at
 
 
@@ -247,7 +252,7 @@ def gradient_bridged(v, mu, itot, xprev0, a, t_start, t_end, us_end, g_prev, ter
             tmp, eb = np.empty((4, 2)), np.empty(NODES + 2)
             c, cp, mom = np.empty((NODES + 2, W)), np.empty((NODES + 2, W)), np.empty((7, NODES, W))
             fwd, rev, total = np.empty((2, NODES, W)), np.empty((2, NODES, W)), np.empty((2, W))
-            outs = np.empty(MAX_EXCURSIONS)
+            outs, sides = np.empty(2 * MAX_EXCURSIONS), np.empty(2 * MAX_EXCURSIONS, np.int64)
             base, cap, n = region[y, START], region[y, CAP], region[y, FILL]
             stopped = False
             for t in range(t0, T):
@@ -296,7 +301,7 @@ def gradient_bridged(v, mu, itot, xprev0, a, t_start, t_end, us_end, g_prev, ter
                         row_tern[x] = new
                     if extra:
                         n = _write(nl, lane, count, fwd, rev, pol, axis, y, step_x, cid0, ta, dt, us_end[t],
-                                   bridge_key, outs, buf_t, buf_x, buf_y, buf_p, buf_axis, base + n) - base
+                                   bridge_key, outs, sides, buf_t, buf_x, buf_y, buf_p, buf_axis, base + n) - base
                     for i in range(m):
                         row_g[i * step_x] = g_new[i]
                 if stopped:
