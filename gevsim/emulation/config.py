@@ -304,8 +304,11 @@ def check_consistency(config: EmulationConfig, *, duration_s: float) -> None:
         if others or config.cold_start:
             why = (f"the {', '.join(others)} emulator(s) take no bridge" if others
                    else "it starts from a settled photoreceptor (cold_start = false)")
-            raise ConfigError(f"crossings = {config.crossings!r} is for the dvs emulator only so far: {why}",
-                              source=config.source, key="emulation.crossings")
+            raise ConfigError(f"crossings = {config.crossings!r} is for the dvs and gradient emulators only so far: "
+                              f"{why}", source=config.source, key="emulation.crossings")
+        if "gradient" in config.emulators and config.hysteresis_ln > 0.0:
+            raise ConfigError(f"crossings = {config.crossings!r} needs hysteresis_ln = 0 for the gradient emulator "
+                              f"(got {config.hysteresis_ln!r})", source=config.source, key="emulation.crossings")
     if config.aps and config.aps_exposure_s > 1.0 / max(config.frame_rate_hz, 1e-12):
         raise ConfigError("aps_exposure_s exceeds the frame period", source=config.source,
                           key="emulation.aps_exposure_s")
