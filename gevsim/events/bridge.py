@@ -15,9 +15,10 @@ Ornstein-Uhlenbeck bridge of the photoreceptor pole alone breaks where that pole
 ~1 (from 10 chip lux at 500 us): the output pole and the read noise make the path smooth, and only the full
 covariance describes it there.
 
-The DVS uses it when given a :class:`Bridge` (:meth:`gevsim.events.BrightnessEmulator.process`), and the driver
-with ``crossings = "bridge"`` (:mod:`gevsim.emulation.bridging`). The gradient comparators do not yet: a prototype
-(``benchmarks/gradient_bridge.py``, docs/bridge.md) holds their rates within 3 % of 5-us samples up to 5 ms.
+The DVS and the gradient comparators use it when given a :class:`Bridge`
+(:meth:`gevsim.events.BrightnessEmulator.process`, :meth:`gevsim.events.GradientEmulator.process`:
+:mod:`gevsim.events._bridge_gradient`), and so does the driver with ``crossings = "bridge"``
+(:mod:`gevsim.emulation.bridging`).
 """
 
 from __future__ import annotations
