@@ -2,12 +2,14 @@
 
 ``samples`` (the default): the comparators see the signal at the step ends only, linear in between, so the
 driver splits each configured step into sub-steps no longer than the sensor's fastest noise path allows
-(:func:`gevsim.pixel.noise.coarsest_step_s`, ~20 us for davis346). ``bridge``: the DVS and the gradient comparators also place the crossings
-between two samples with the Rice bridge's probability (:mod:`gevsim.events.bridge`), so a step may be as long
-as :data:`BRIDGE_MAX_STEP_S`, the longest at which the noise-event rates were measured to hold
-(``benchmarks/bridged_dvs.py``: within -2 % to +10 % of the short steps at 2 ms from 0.1 to 1000 chip lux, static
-and under a 5 Hz sinusoid). The rule needs each step's noise-free signal: a noise-free twin of the photoreceptor
-(:meth:`gevsim.pixel.Photoreceptor.noise_free_twin`) runs beside it.
+(:func:`gevsim.pixel.noise.coarsest_step_s`, ~20 us for davis346). ``bridge``: the DVS and the gradient
+comparators also place the crossings between two samples with the Rice bridge's probability
+(:mod:`gevsim.events.bridge`), so a step may be as long as :data:`BRIDGE_MAX_STEP_S`, the longest at which the
+noise-event rates were measured to hold (``benchmarks/bridged_dvs.py``: within -2 % to +10 % of the short steps
+at 2 ms from 0.1 to 1000 chip lux, static and under a 5 Hz sinusoid; ``benchmarks/gradient_bridge.py``: the
+gradient comparators within -2 % to +3 % of 5-us steps up to 5 ms). The rule needs each step's noise-free
+signal: a noise-free twin of the photoreceptor (:meth:`gevsim.pixel.Photoreceptor.noise_free_twin`) runs beside
+it.
 """
 
 from __future__ import annotations
