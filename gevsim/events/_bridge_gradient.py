@@ -229,6 +229,27 @@ def _write(n, lane, count, fwd, rev, pol, axis, y, step_x, cid0, ta, dt, us_last
     return at
 
 
+@njit(cache=True, error_model="numpy", fastmath={"nnan", "ninf"})
+def _changes(changed, idx, step_x, row_tern, row_g, row_theta, t_new, g_new, interpolate, ta, dt, us_last, table, axis,
+             y, buf_t, buf_x, buf_y, buf_p, buf_axis, at):
+    """The events of the comparators whose state changed between the samples (as the sampled kernel writes them)
+    into the buffers from ``at``; their new states into ``row_tern``. Returns the new fill."""
+    for q in range(changed):
+        i = idx[q]
+        x = i * step_x
+        old = row_tern[x]
+        new = t_new[i]
+        s = _crossing(row_g[x], g_new[i], old, new, row_theta[x], 0.0) if interpolate else 1.0
+        buf_t[at] = min(np.int64(math.floor((ta + s * dt) * 1e6 + 0.5)), us_last)
+        buf_x[at] = x
+        buf_y[at] = y
+        buf_p[at] = table[old + 1, new + 1]
+        buf_axis[at] = axis
+        at += 1
+        row_tern[x] = new
+    return at
+
+
 @njit(parallel=True, nogil=True, cache=True, error_model="numpy", fastmath={"nnan", "ninf"})
 def gradient_bridged(v, mu, itot, xprev0, a, t_start, t_end, us_end, g_prev, tern, theta, offset, rc, interpolate,
                      table, law, bridge_key, buf_t, buf_x, buf_y, buf_p, buf_axis, region, order):
@@ -285,23 +306,13 @@ def gradient_bridged(v, mu, itot, xprev0, a, t_start, t_end, us_end, g_prev, ter
                         region[y, RESUME_T] = t
                         region[y, RESUME_I] = axis
                         break
-                    row_tern, row_g, row_theta = tern[axis, y], g_prev[axis, y], theta[axis, y]
-                    for q in range(changed):
-                        i = idx[q]
-                        x = i * step_x
-                        old = row_tern[x]
-                        new = t_new[i]
-                        s = _crossing(row_g[x], g_new[i], old, new, row_theta[x], 0.0) if interpolate else 1.0
-                        buf_t[base + n] = min(np.int64(math.floor((ta + s * dt) * 1e6 + 0.5)), us_end[t])
-                        buf_x[base + n] = x
-                        buf_y[base + n] = y
-                        buf_p[base + n] = table[old + 1, new + 1]
-                        buf_axis[base + n] = axis
-                        n += 1
-                        row_tern[x] = new
+                    n = _changes(changed, idx, step_x, tern[axis, y], g_prev[axis, y], theta[axis, y], t_new, g_new,
+                                 interpolate, ta, dt, us_end[t], table, axis, y, buf_t, buf_x, buf_y, buf_p, buf_axis,
+                                 base + n) - base
                     if extra:
                         n = _write(nl, lane, count, fwd, rev, pol, axis, y, step_x, cid0, ta, dt, us_end[t],
                                    bridge_key, outs, sides, buf_t, buf_x, buf_y, buf_p, buf_axis, base + n) - base
+                    row_g = g_prev[axis, y]
                     for i in range(m):
                         row_g[i * step_x] = g_new[i]
                 if stopped:
