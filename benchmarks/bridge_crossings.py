@@ -1,7 +1,7 @@
 """Route B of docs/long-steps.md, measured: noise-event rates of a DVS that sees the photoreceptor only every h,
 with and without a Brownian-bridge crossing rule between the samples, against the physics-valid short steps.
 
-A davis346 pixel array on a static log-normal texture (``long_steps.scene``) at a chip illuminance is started
+A davis346 pixel array on a static log-normal texture (:func:`scene`) at a chip illuminance is started
 as a running sensor (``gevsim.validation.measure.start_running``). Three paths then run over the same span from
 copies of that start (independent noise, the same law):
 
@@ -26,20 +26,25 @@ import math
 import time
 
 import numpy as np
-from long_steps import scene
 
 from gevsim import _portable as pm
 from gevsim.events.bridge import crossings
 from gevsim.pixel import load_preset
 from gevsim.pixel._cascade import separated_hz
 from gevsim.pixel.noise import coarsest_step_s
-from gevsim.validation.measure import running_sensor, start_running
+from gevsim.validation.measure import photocurrent_a, running_sensor, start_running
 
 #: Seconds in the rice rule and pixel-steps it saw (its cost).
 RULE_S = [0.0, 0]
 
 #: Ways to set the bridge's spread (see :func:`bridge_path`).
 VARIANTS = ("lag", "slow", "smooth", "ou", "rice")
+
+
+def scene(shape: tuple[int, int], preset, chip_lux: float) -> np.ndarray:
+    """Photocurrent (A) of a static log-normal texture (sigma 0.5 ln) around ``chip_lux``."""
+    z = np.random.default_rng(7).standard_normal(shape)
+    return photocurrent_a(preset, chip_lux) * pm.exp(0.5 * z - 0.125)
 
 
 def rate(counts: np.ndarray, span_s: float) -> tuple[float, float]:

@@ -1,7 +1,7 @@
 """The DVS with crossings between long samples (``BrightnessEmulator.process(..., bridge=...)``) against the
 driver's physics-valid short steps: noise-event rates and cost per simulated second (issue 37, item 1).
 
-A davis346 array on a static log-normal texture (``long_steps.scene``), optionally times exp(A sin(2 pi f t)),
+A davis346 array on a static log-normal texture (``bridge_crossings.scene``), optionally times exp(A sin(2 pi f t)),
 is settled, its noise-free twin taken (``Photoreceptor.noise_free_twin``), its levels drawn and burnt in; then
 from copies of that start:
 - ``reference``: photoreceptor and DVS at the driver's step (``coarsest_step_s``, at most 20 us);
@@ -19,8 +19,7 @@ import math
 import time
 
 import numpy as np
-from bridge_crossings import lighting, rate
-from long_steps import scene
+from bridge_crossings import lighting, rate, scene
 
 from gevsim.emulation.config import BURN_IN_S
 from gevsim.emulation.start import start_levels

@@ -1,7 +1,7 @@
 """The full davis346 pixel path (photoreceptor with noise, DVS, gradient) on a static scene: the driver's short
 steps against long steps with the crossing rule on both emulators (issue 37, item 1, done-when 2).
 
-A davis346 array on a static log-normal texture (``long_steps.scene``) is settled, its noise-free twin taken, its
+A davis346 array on a static log-normal texture (``bridge_crossings.scene``) is settled, its noise-free twin taken, its
 DVS levels drawn and burnt in; then from copies of that start, for ``--span`` seconds:
 - ``reference``: photoreceptor, DVS and gradient comparators at the driver's step (20 us);
 - ``bridged``: photoreceptor, its noise-free twin, DVS and gradient with the crossing rule at steps of h.
@@ -19,9 +19,8 @@ import copy
 import time
 
 import numpy as np
-from bridge_crossings import lighting
+from bridge_crossings import lighting, scene
 from bridged_dvs import started
-from long_steps import scene
 
 from gevsim.emulation.emulators import GradientConfig
 from gevsim.events import GradientEmulator

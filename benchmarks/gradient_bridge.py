@@ -30,9 +30,8 @@ import math
 import time
 
 import numpy as np
-from bridge_crossings import lighting, rate
+from bridge_crossings import lighting, rate, scene
 from bridged_dvs import started
-from long_steps import scene
 
 from gevsim.emulation.emulators import GradientConfig
 from gevsim.events import GradientEmulator, _bridge
