@@ -27,12 +27,24 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from gevsim.events._bridge import CELL, NODES, WEIGHT, XI, Z_SKIP, _exp, _mean_excess, lane_law, lanes, node_exps
+from gevsim.events._bridge import (
+    _INV_SQ2PI,
+    CELL,
+    NODES,
+    WEIGHT,
+    XI,
+    Z_SKIP,
+    _exp,
+    _mean_excess,
+    lane_law,
+    lanes,
+    node_exps,
+    node_terms,
+)
 from gevsim.events._bridge_dvs import FAR_SD, _uniform
 from gevsim.events._kernels import CAP, FILL, RESUME_I, RESUME_T, START, STEP_END0, _crossing, _gradient_row
 from gevsim.pixel._kernels import stream_key
 
-_INV_SQ2PI = 1.0 / math.sqrt(2.0 * math.pi)
 #: Most excursions drawn per comparator, side and step.
 MAX_EXCURSIONS = 64
 
@@ -48,14 +60,7 @@ def _shares(sx0, sx1, g0, g1, on, m, h, mom, fwd, rev, total):
         tq = XI[q] * h
         wq = WEIGHT[q] * h * _INV_SQ2PI
         for i in range(m):
-            x0 = sx0[i]
-            x1 = sx1[i]
-            b0 = x0 + g0[i]
-            slope = (x1 + g1[i] - b0) / h
-            gap = b0 + slope * tq - (mom[0, q, i] * x0 + mom[1, q, i] * x1)
-            z = gap * mom[2, q, i]
-            mu = mom[3, q, i] * x0 + mom[4, q, i] * x1 + mom[5, q, i] * gap - slope
-            dens = wq * _exp(-0.5 * z * z) * mom[2, q, i]
+            z, mu, dens = node_terms(sx0[i], sx1[i], g0[i], g1[i], tq, wq, h, mom, q, i)
             keep = (abs(z) <= Z_SKIP) & on[i]
             f = dens * _mean_excess(mu, mom[6, q, i]) if keep else 0.0
             fwd[q, i] = f
