@@ -21,20 +21,21 @@ import time
 import numpy as np
 from bridge_crossings import lighting, rate, scene
 
+from gevsim.emulation.bridging import Bridging
 from gevsim.emulation.config import BURN_IN_S
 from gevsim.emulation.start import start_levels
-from gevsim.events.bridge import Bridge
 from gevsim.pixel import load_preset
 from gevsim.pixel.noise import coarsest_step_s
 from gevsim.validation.measure import pixel_counts, running_sensor
 
 
 def started(preset, level: np.ndarray, step: float, light):
-    """Photoreceptor, its noise-free twin and DVS, settled on ``level``, levels drawn, burnt in over BURN_IN_S
-    at ``step`` (light(t, dt) from t = 0). Returns them and the time the burn-in ended."""
+    """Photoreceptor, its :class:`~gevsim.emulation.bridging.Bridging` (noise-free twin and law) and DVS, settled on
+    ``level``, levels drawn, burnt in over BURN_IN_S at ``step`` (light(t, dt) from t = 0). Returns them and the
+    time the burn-in ended."""
     pr, dvs = running_sensor(preset, level.shape, 1)
     pr.settle(level[None], np.full(1, step))
-    twin = pr.noise_free_twin()
+    bridging = Bridging(pr)
     start_levels(pr, [dvs])
     n = int(math.ceil(BURN_IN_S / step - 1e-9))
     t = step * np.arange(1, n + 1)
@@ -42,26 +43,20 @@ def started(preset, level: np.ndarray, step: float, light):
         tt = t[a:a + 256]
         cur = light(tt, step)
         dvs.process(pr.process(cur, tt), tt)
-        twin.process(cur, tt)
-    return pr, twin, dvs, n * step
+        bridging.twin.process(cur, tt)
+    return pr, bridging, dvs, n * step
 
 
-def run_path(pr, twin, dvs, light, t0: float, span_s: float, h: float, bridged: bool):
+def run_path(pr, bridging, dvs, light, t0: float, span_s: float, h: float, bridged: bool):
     """Events of the chain over (t0, t0 + span_s] at steps of h, with or without the crossing rule."""
     t = t0 + h * np.arange(1, int(round(span_s / h)) + 1)
     chunk = max(1, 2_000_000 // dvs.threshold_on_ln.size)
-    law = pr.noise_law()
     out = []
     for a in range(0, len(t), chunk):
         tt = t[a:a + chunk]
         cur = np.ascontiguousarray(light(tt, h), dtype=np.float32)
         v = pr.process(cur, tt)
-        bridge = None
-        if bridged:
-            mu = twin.process(cur, tt)
-            total = cur.reshape(len(tt), -1) * pr.gain.astype(np.float32) + pr.dark_a.astype(np.float32)
-            bridge = Bridge(mu, total.reshape(cur.shape), law)
-        out.append(dvs.process(v, tt, bridge=bridge))
+        out.append(dvs.process(v, tt, bridge=bridging.bridge(cur, tt) if bridged else None))
     return np.concatenate(out)
 
 
@@ -84,18 +79,18 @@ def main() -> None:
         level = scene((hgt, w), preset, lux)
         step = min(2e-5, coarsest_step_s(preset.photoreceptor, preset.noise, float(level.max())) or 2e-5)
         light = lighting(level, 0.0, args.sine_ln, args.sine_hz)
-        pr, twin, dvs, t0 = started(preset, level, step, light)
+        pr, bridging, dvs, t0 = started(preset, level, step, light)
         tick = time.perf_counter()
-        ev = run_path(copy.deepcopy(pr), copy.deepcopy(twin), copy.deepcopy(dvs), light, t0, args.span, step, False)
+        ev = run_path(copy.deepcopy(pr), copy.deepcopy(bridging), copy.deepcopy(dvs), light, t0, args.span, step, False)
         s_ref = time.perf_counter() - tick
         r_ref = rate(pixel_counts(ev, (hgt, w)), args.span)
         on_ref = float(np.mean(ev["p"])) if len(ev) else math.nan
         for h_us in args.steps_us:
             h = h_us * 1e-6
-            ev_s = run_path(copy.deepcopy(pr), copy.deepcopy(twin), copy.deepcopy(dvs), light, t0, args.span, h,
+            ev_s = run_path(copy.deepcopy(pr), copy.deepcopy(bridging), copy.deepcopy(dvs), light, t0, args.span, h,
                             False)
             tick = time.perf_counter()
-            ev_b = run_path(copy.deepcopy(pr), copy.deepcopy(twin), copy.deepcopy(dvs), light, t0, args.span, h,
+            ev_b = run_path(copy.deepcopy(pr), copy.deepcopy(bridging), copy.deepcopy(dvs), light, t0, args.span, h,
                             True)
             s_b = time.perf_counter() - tick
             r_s = rate(pixel_counts(ev_s, (hgt, w)), args.span)

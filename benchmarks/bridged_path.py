@@ -24,28 +24,22 @@ from bridged_dvs import started
 
 from gevsim.emulation.emulators import GradientConfig
 from gevsim.events import GradientEmulator
-from gevsim.events.bridge import Bridge
 from gevsim.pixel import load_preset
 
 REF_STEP_S = 2e-5
 
 
-def run_path(pr, twin, dvs, grad, light, t0: float, span_s: float, h: float, bridged: bool):
+def run_path(pr, bridging, dvs, grad, light, t0: float, span_s: float, h: float, bridged: bool):
     """(DVS events, gradient events, seconds) over (t0, t0 + span_s] at steps of h."""
     t = t0 + h * np.arange(1, int(round(span_s / h)) + 1)
     chunk = max(1, 1_000_000 // dvs.threshold_on_ln.size)
-    law = pr.noise_law()
-    gain, dark = pr.gain.astype(np.float32), pr.dark_a.astype(np.float32)
     n_dvs = n_grad = 0
     tick = time.perf_counter()
     for a in range(0, len(t), chunk):
         tt = t[a:a + chunk]
         cur = np.ascontiguousarray(light(tt, h), dtype=np.float32)
         v = pr.process(cur, tt)
-        bridge = None
-        if bridged:
-            total = cur.reshape(len(tt), -1) * gain + dark
-            bridge = Bridge(twin.process(cur, tt), total.reshape(cur.shape), law)
+        bridge = bridging.bridge(cur, tt) if bridged else None
         n_dvs += len(dvs.process(v, tt, bridge=bridge))
         n_grad += len(grad.process(v, tt, bridge=bridge))
     return n_dvs, n_grad, time.perf_counter() - tick
@@ -68,14 +62,14 @@ def main() -> None:
     for lux in args.lux:
         level = scene(shape, preset, lux)
         light = lighting(level, 0.0, 0.0, 5.0)
-        pr, twin, dvs, t0 = started(preset, level, REF_STEP_S, light)
+        pr, bridging, dvs, t0 = started(preset, level, REF_STEP_S, light)
         grad = GradientEmulator(shape, thresholds_ln=GradientConfig.thresholds_ln, rng=np.random.default_rng(3),
                                 offset_sigma_ln=preset.events.comparator_offset_v / preset.photoreceptor.volts_per_ln)
         tt = np.array([t0 + 1e-6])
         grad.process(pr.process(light(tt, 1e-6), tt), tt)
-        twin.process(light(tt, 1e-6), tt)
+        bridging.twin.process(light(tt, 1e-6), tt)
         t0 = float(tt[0])
-        state = (pr, twin, dvs, grad)
+        state = (pr, bridging, dvs, grad)
         ref = run_path(*copy.deepcopy(state), light, t0, args.span, REF_STEP_S, False)
         for h_us in args.steps_us:
             br = run_path(*copy.deepcopy(state), light, t0, args.span, h_us * 1e-6, True)

@@ -218,7 +218,7 @@ def main() -> None:
     for lux in args.lux:
         level = scene(shape, preset, lux)
         light = lighting(level, 0.0, 0.0, 5.0)
-        pr, twin, _, t0 = started(preset, level, REF_STEP_S, light)
+        pr, bridging, _, t0 = started(preset, level, REF_STEP_S, light)
         grad = GradientEmulator(shape, thresholds_ln=GradientConfig.thresholds_ln, rng=np.random.default_rng(3),
                                 offset_sigma_ln=preset.events.comparator_offset_v / preset.photoreceptor.volts_per_ln)
         ref = reference_counts(copy.deepcopy(pr), copy.deepcopy(grad), light, t0, args.span)
@@ -226,7 +226,7 @@ def main() -> None:
         law = pr.noise_law()
         for h_us in args.steps_us:
             h = h_us * 1e-6
-            br, share = bridged_counts(copy.deepcopy(pr), copy.deepcopy(twin), copy.deepcopy(grad), light, t0,
+            br, share = bridged_counts(copy.deepcopy(pr), copy.deepcopy(bridging.twin), copy.deepcopy(grad), light, t0,
                                        args.span, h, np.random.default_rng(5), law)
             sampled = copy.deepcopy(grad)
             smp = np.zeros((2,) + shape)

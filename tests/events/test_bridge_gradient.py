@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from gevsim import _portable as pm
+from gevsim.emulation.bridging import Bridging
 from gevsim.events import GradientEmulator
 from gevsim.events._kernels import EVENT_TABLE, apply_gradient_events
 from gevsim.events.bridge import Bridge
@@ -33,29 +34,24 @@ def state(preset):
     level = (photocurrent_a(preset, 10.0) * pm.exp(0.5 * z - 0.125)).astype(np.float32)
     pr, _ = running_sensor(preset, SHAPE, 1)
     pr.settle(level[None], np.full(1, FINE_S))
-    twin = pr.noise_free_twin()
+    bridging = Bridging(pr)
     grad = GradientEmulator(SHAPE, thresholds_ln=(0.05, 0.1, 0.2), rng=np.random.default_rng(3),
                             offset_sigma_ln=preset.events.comparator_offset_v / preset.photoreceptor.volts_per_ln)
     t0 = np.array([1e-6])
     grad.process(pr.process(level[None], t0), t0)
-    twin.process(level[None], t0)
-    return pr, twin, grad, level
+    bridging.twin.process(level[None], t0)
+    return pr, bridging, grad, level
 
 
 def path(state, span_s, h, bridged, chunks=1):
     """Events and the final comparators of steps of h over span_s from the start."""
-    pr, twin, grad, level = copy.deepcopy(state)
+    pr, bridging, grad, level = copy.deepcopy(state)
     t = 1e-6 + h * np.arange(1, int(round(span_s / h)) + 1)
-    law = pr.noise_law()
     out = []
     for tt in np.array_split(t, max(chunks, len(t) // 2000)):
         cur = np.repeat(level[None], len(tt), axis=0)
         v = pr.process(cur, tt)
-        bridge = None
-        if bridged:
-            total = (cur.reshape(len(tt), -1) * pr.gain.astype(np.float32) + pr.dark_a.astype(np.float32))
-            bridge = Bridge(twin.process(cur, tt), total.reshape(cur.shape), law)
-        out.append(grad.process(v, tt, bridge=bridge))
+        out.append(grad.process(v, tt, bridge=bridging.bridge(cur, tt) if bridged else None))
     return np.concatenate(out), grad
 
 
@@ -108,10 +104,10 @@ def test_events_depend_on_neither_chunks_nor_threads(state):
 
 
 def test_hysteresis_is_refused(state, preset):
-    pr, twin, _, level = copy.deepcopy(state)
+    pr, bridging, _, level = copy.deepcopy(state)
     grad = GradientEmulator(SHAPE, hysteresis_ln=0.01)
     t = np.array([1e-3, 2e-3])
     cur = np.repeat(level[None], 2, axis=0)
-    bridge = Bridge(twin.process(cur, t), cur, pr.noise_law())
+    bridge = Bridge(bridging.twin.process(cur, t), cur, bridging.law)
     with pytest.raises(ValueError, match="hysteresis_ln = 0"):
         grad.process(pr.process(cur, t), t, bridge=bridge)
