@@ -17,6 +17,7 @@ the paper's thresholds {4, 8, 16}/255 apply.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from collections.abc import Sequence
 
@@ -154,9 +155,6 @@ class GradientEmulator:
         self.g_prev = np.zeros((2,) + self.shape)
         self.state = np.zeros((2,) + self.shape, np.int8)
         self.x_last: np.ndarray | None = None  # the noise at the last sample (bridged steps only)
-        # Keys the crossing rule's draws: a hash of the comparators' random thresholds and offsets (no draw from rng).
-        digest = hashlib.sha256(self.theta.tobytes() + self.offset.tobytes()).digest()
-        self.bridge_key = np.uint64(int.from_bytes(digest[:8], "little"))
         self.blocks = EventBlocks(self.shape[0], dtype=self.dtype,
                                   first_per_step=self.shape[1] / 4, min_free=self.shape[1], run=8)
 
@@ -169,6 +167,13 @@ class GradientEmulator:
             t[AXIS_X, :, 1::2] = 0
             t[AXIS_Y, 1::2, :] = 0
         return t
+
+    @functools.cached_property
+    def bridge_key(self) -> np.uint64:
+        """Keys the crossing rule's draws: a hash of the comparators' random thresholds and offsets (no draw from
+        the rng), taken on the first bridged step only."""
+        digest = hashlib.sha256(self.theta.tobytes() + self.offset.tobytes()).digest()
+        return np.uint64(int.from_bytes(digest[:8], "little"))
 
     def mark_start(self) -> None:
         """Take the present ternary state as :attr:`initial_state` (a run's t = 0 after a burn-in)."""
@@ -204,8 +209,8 @@ class GradientEmulator:
         else:
             mu, itot = bridge.arrays(v.shape, first)
             mu, itot = mu.reshape(v.shape), itot.reshape(steps.shape)
-            noise = np.asarray(v, np.float64) - mu
-            x_prev = noise[0] if first else (np.zeros(self.shape) if self.x_last is None else self.x_last)
+            x_prev = (v[0].astype(np.float64) - mu[0] if first
+                      else (np.zeros(self.shape) if self.x_last is None else self.x_last))
             mu = mu[1:] if first else mu
             law = bridge.law.as_tuple()
 
@@ -213,7 +218,7 @@ class GradientEmulator:
                 _bridge_gradient.gradient_bridged(steps, mu, itot, x_prev, a, t_start[a:b], t_end[a:b], us_end,
                                                   g_prev, state, self.theta, self.offset, self.rc, self.interpolate,
                                                   EVENT_TABLE, law, self.bridge_key, *bufs_and_region)
-            self.x_last = noise[-1]
+            self.x_last = v[-1].astype(np.float64) - mu[-1]
         events = self.blocks.collect(kernel, t_start, t_end)
         self.g_prev, self.state = g_prev, state
         self.clock.t_s = float(np.asarray(t_s, float).reshape(-1)[-1])
