@@ -142,20 +142,15 @@ def write(tmp_path, name, *, step_s, crossings, emulators=("dvs",), extra=""):
 def test_a_bridged_run_keeps_the_short_steps_rate(tmp_path):
     """The card scene without flicker, dimmed to ~0.1 chip lux (~16 noise events per pixel and second): 1-ms
     steps with the bridge rule (one step each: 50x the short step) give the 20-us run's DVS rate within 8 %
-    (measured 0.98 here; benchmarks/bridged_dvs.py for 0.1-1000 lux), and the file says how it was stepped. The
-    gradient comparators cross 0-12 % more often than in the 20-us run (measured 1.06): 20 us misses the
-    excursions shorter than a step (4-7 % of them; tests/events/test_bridge_gradient.py holds the rule to 5-us
-    steps)."""
-    emulators = ("dvs", "gradient")
-    short = run(load_config(write(tmp_path, "short.toml", step_s=2e-5, crossings="samples", emulators=emulators)),
-                tmp_path / "short.h5", cache_dir=tmp_path / "cache", flicker=False)
-    long = run(load_config(write(tmp_path, "long.toml", step_s=1e-3, crossings="bridge", emulators=emulators)),
-               tmp_path / "long.h5", cache_dir=tmp_path / "cache", flicker=False)
-    # The pixels' crossings, before the readout: the bus delivers the same ~51,000 gradient events in both runs.
-    made = [{k: c["requested"] for k, c in r.readout.items()} for r in (short, long)]
-    assert made[0]["events"] > 3000 and made[0]["gradient_events"] > 3000
-    assert abs(made[1]["events"] / made[0]["events"] - 1.0) < 0.08, made
-    assert 1.0 <= made[1]["gradient_events"] / made[0]["gradient_events"] < 1.12, made
+    (measured 0.98 here; benchmarks/bridged_dvs.py for 0.1-1000 lux), and the file says how it was stepped. (The
+    gradient emulator's run: tests/events/test_bridge_gradient.py, where its kernel is compiled.)"""
+    short = run(load_config(write(tmp_path, "short.toml", step_s=2e-5, crossings="samples")), tmp_path / "short.h5",
+                cache_dir=tmp_path / "cache", flicker=False)
+    long = run(load_config(write(tmp_path, "long.toml", step_s=1e-3, crossings="bridge")), tmp_path / "long.h5",
+               cache_dir=tmp_path / "cache", flicker=False)
+    made = [r.readout["events"]["requested"] for r in (short, long)]  # the pixels' crossings, before the readout
+    assert made[0] > 3000
+    assert abs(made[1] / made[0] - 1.0) < 0.08, made
     with EventReader(tmp_path / "long.h5") as r:
         assert r.attrs["crossings"] == "bridge" and int(r.attrs["substeps"]) == 1
 
